@@ -1,0 +1,193 @@
+"""The functional environment contract and the one auto-reset wrapper.
+
+An `Env` is a set of pure functions over an `EnvState` pytree, in the spirit of
+mujoco_playground's `MjxEnv`:
+
+    state = env.reset(key)            # one episode start
+    state = env.step(state, action)   # one control step, no reset, no time limit
+
+`VecEnv` is the only place that vmaps over environments, counts steps, sets `truncated` at
+`episode_length`, and resets finished episodes. Unlike the brax/playground auto-reset wrappers
+it keeps the pre-reset observation in `final_obs`, so a learner can store the true s_{t+1}.
+
+Shape letters: E envs, O observation size, A action size.
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+
+@struct.dataclass
+class EnvState:
+    """State of one environment (add a leading [E] axis for a `VecEnv`).
+
+    Attributes:
+      physics: the simulator state (`mjx.Data` for MJX envs), or any pytree.
+      task: task-specific state (maze stage, reach goal, ...), any pytree; `()` if none.
+      obs: [O] float32 observation after the step (after the reset, if one happened).
+      reward: [] float32 reward of the step.
+      terminated: [] bool, the step ended the episode by a task termination (a fall).
+      truncated: [] bool, the step hit the time limit without terminating.
+      final_obs: [O] the observation the step produced, before any auto-reset. Equals `obs`
+        when no reset happened. This is s_{t+1} for the learner.
+      first: [] bool, `obs` is the first observation of an episode.
+      step_count: [] int32 steps taken in the current episode.
+      episode_return: [] float32 undiscounted return of the current episode so far.
+      last_return: [] float32 return of the most recently finished episode (NaN before any).
+      last_length: [] int32 length of the most recently finished episode (0 before any).
+      metrics: dict of [] float32 per-step quantities to log (each reward term).
+      key: PRNG key used for the next reset.
+    """
+
+    physics: Any
+    task: Any
+    obs: jax.Array
+    reward: jax.Array
+    terminated: jax.Array
+    truncated: jax.Array
+    final_obs: jax.Array
+    first: jax.Array
+    step_count: jax.Array
+    episode_return: jax.Array
+    last_return: jax.Array
+    last_length: jax.Array
+    metrics: dict[str, jax.Array]
+    key: jax.Array
+
+
+class Env(abc.ABC):
+    """A single, unbatched environment. Subclasses implement `reset` and `step`.
+
+    `step` must set `obs`, `reward`, `terminated`, `physics`, `task` and `metrics`; the
+    bookkeeping fields (`truncated`, `final_obs`, `first`, `step_count`, returns) belong to
+    `VecEnv`. Use `init_state` to build a fresh state in `reset`.
+    """
+
+    @property
+    @abc.abstractmethod
+    def observation_size(self) -> int: ...
+
+    @property
+    @abc.abstractmethod
+    def action_size(self) -> int: ...
+
+    @property
+    @abc.abstractmethod
+    def episode_length(self) -> int:
+        """Time limit in control steps (agent steps)."""
+
+    @property
+    def success_bar(self) -> float | None:
+        """Episode return counted as success (HumanoidBench's R_target), if the task has one."""
+        return None
+
+    @abc.abstractmethod
+    def reset(self, key: jax.Array) -> EnvState: ...
+
+    @abc.abstractmethod
+    def step(self, state: EnvState, action: jax.Array) -> EnvState: ...
+
+    def metric_names(self) -> tuple[str, ...]:
+        """Names of the per-step metrics `step` reports (must match `reset`)."""
+        return ()
+
+
+def init_state(
+    physics: Any,
+    obs: jax.Array,
+    key: jax.Array,
+    task: Any = (),
+    metrics: dict[str, jax.Array] | None = None,
+) -> EnvState:
+    """A fresh episode-start state with zeroed bookkeeping."""
+    obs = jnp.asarray(obs, jnp.float32)
+    zero = jnp.zeros((), jnp.float32)
+    return EnvState(
+        physics=physics,
+        task=task,
+        obs=obs,
+        reward=zero,
+        terminated=jnp.zeros((), bool),
+        truncated=jnp.zeros((), bool),
+        final_obs=obs,
+        first=jnp.ones((), bool),
+        step_count=jnp.zeros((), jnp.int32),
+        episode_return=zero,
+        last_return=jnp.full((), jnp.nan, jnp.float32),
+        last_length=jnp.zeros((), jnp.int32),
+        metrics=dict(metrics or {}),
+        key=key,
+    )
+
+
+class VecEnv:
+    """E copies of an `Env`, vmapped, with time limit and auto-reset.
+
+    `reset(key) -> EnvState[E]` and `step(state[E], action[E, A]) -> EnvState[E]` are pure and
+    jittable. After a step that ends an episode (terminated or truncated), `obs` is the reset
+    observation of the next episode, `first` is True, and `final_obs` keeps the last observation.
+    """
+
+    def __init__(self, env: Env, num_envs: int):
+        if num_envs < 1:
+            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        self.env = env
+        self.num_envs = num_envs
+
+    @property
+    def observation_size(self) -> int:
+        return self.env.observation_size
+
+    @property
+    def action_size(self) -> int:
+        return self.env.action_size
+
+    @property
+    def episode_length(self) -> int:
+        return self.env.episode_length
+
+    @property
+    def success_bar(self) -> float | None:
+        return self.env.success_bar
+
+    def reset(self, key: jax.Array) -> EnvState:
+        return jax.vmap(self.env.reset)(jax.random.split(key, self.num_envs))
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        return jax.vmap(self._step_one)(state, action)
+
+    def _step_one(self, state: EnvState, action: jax.Array) -> EnvState:
+        nxt = self.env.step(state, action)
+        step_count = state.step_count + 1
+        terminated = jnp.asarray(nxt.terminated, bool)
+        truncated = jnp.logical_and(step_count >= self.env.episode_length, ~terminated)
+        done = terminated | truncated
+        episode_return = state.episode_return + nxt.reward
+        key_reset, key_next = jax.random.split(state.key)
+        fresh = self.env.reset(key_reset)
+        stepped = nxt.replace(
+            terminated=terminated,
+            truncated=truncated,
+            final_obs=nxt.obs,
+            first=jnp.zeros((), bool),
+            step_count=step_count,
+            episode_return=episode_return,
+            last_return=jnp.where(done, episode_return, state.last_return),
+            last_length=jnp.where(done, step_count, state.last_length),
+            key=key_next,
+        )
+        reset = stepped.replace(
+            physics=fresh.physics,
+            task=fresh.task,
+            obs=fresh.obs,
+            first=jnp.ones((), bool),
+            step_count=jnp.zeros((), jnp.int32),
+            episode_return=jnp.zeros((), jnp.float32),
+        )
+        return jax.tree.map(lambda r, s: jnp.where(done, r, s), reset, stepped)
