@@ -1,0 +1,187 @@
+"""`make_agent`: the TD-MPC2/TDMPBC agent as pure functions over `AgentState` (spec §2.4, §3)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+
+from sirl_jax.agent import losses
+from sirl_jax.agent.config import AgentConfig
+from sirl_jax.agent.math import discount_from_episode_length
+from sirl_jax.agent.networks import init_params
+from sirl_jax.agent.planner import PlannerModel, PlannerState, make_planner
+from sirl_jax.agent.world_model import make_world_model
+from sirl_jax.types import Batch
+
+WM_KEYS = ("encoder", "dynamics", "reward", "qs")
+
+
+@struct.dataclass
+class AgentState:
+    """params: {'encoder', 'dynamics', 'reward', 'policy', 'qs'}; target_qs: Polyak copy of 'qs';
+    wm_opt_state / pi_opt_state: Adam states; scale: [] running Q scale S."""
+
+    params: dict
+    target_qs: dict
+    wm_opt_state: optax.OptState
+    pi_opt_state: optax.OptState
+    scale: jax.Array
+
+
+@dataclasses.dataclass(frozen=True)
+class Agent:
+    """Static agent description plus its pure functions (none of them jitted)."""
+
+    cfg: AgentConfig
+    obs_size: int
+    action_size: int
+    episode_length: int
+    discount: float
+    iterations: int
+    init: Callable  # (key) -> AgentState
+    update: Callable  # (AgentState, Batch, key) -> (AgentState, metrics)
+    init_planner: Callable  # (num_envs) -> PlannerState
+    plan: Callable  # (AgentState, PlannerState, obs[E, O], first[E], key, eval_mode)
+    act_policy: Callable  # (AgentState, obs[E, O], key, eval_mode) -> action[E, A]
+
+
+def _wm_optimizer(cfg: AgentConfig) -> optax.GradientTransformation:
+    """One global-norm clip over all world-model params, then Adam; encoder lr x enc_lr_scale."""
+
+    def labels(params):
+        return {
+            k: jax.tree_util.tree_map(lambda _, k=k: "enc" if k == "encoder" else "rest", v)
+            for k, v in params.items()
+        }
+
+    return optax.chain(
+        optax.clip_by_global_norm(cfg.grad_clip_norm),
+        optax.multi_transform(
+            {"enc": optax.adam(cfg.lr * cfg.enc_lr_scale), "rest": optax.adam(cfg.lr)}, labels
+        ),
+    )
+
+
+def polyak(target, online, tau: float):
+    """target <- (1 - tau) * target + tau * online, leaf-wise."""
+    return jax.tree_util.tree_map(lambda t, o: (1.0 - tau) * t + tau * o, target, online)
+
+
+def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length: int) -> Agent:
+    """Builds the agent for static sizes; gamma and MPPI iterations are derived here."""
+    for name, v in (
+        ("obs_size", obs_size),
+        ("action_size", action_size),
+        ("episode_length", episode_length),
+    ):
+        if v < 1:
+            raise ValueError(f"{name}={v} is invalid; allowed: an int >= 1")
+    discount = (
+        cfg.discount
+        if cfg.discount is not None
+        else discount_from_episode_length(
+            episode_length, cfg.discount_denom, cfg.discount_min, cfg.discount_max
+        )
+    )
+    iterations = cfg.iterations + (2 if action_size >= 20 else 0)
+    wm = make_world_model(cfg, action_size)
+    wm_tx = _wm_optimizer(cfg)
+    pi_tx = optax.chain(
+        optax.clip_by_global_norm(cfg.grad_clip_norm), optax.adam(cfg.lr, eps=cfg.pi_adam_eps)
+    )
+    planner = make_planner(
+        cfg,
+        action_size,
+        discount,
+        iterations,
+        PlannerModel(
+            encode=wm.encode,
+            next=wm.next,
+            reward=wm.reward,
+            pi_sample=lambda p, z, k: wm.pi(p, z, k).action,
+            q_avg=lambda p, z, a, k: wm.q_pair(p["qs"], z, a, k, "avg", None),
+        ),
+    )
+
+    def init(key: jax.Array) -> AgentState:
+        params = init_params(cfg, obs_size, action_size, key)
+        wm_params = {k: params[k] for k in WM_KEYS}
+        return AgentState(
+            params=params,
+            target_qs=jax.tree_util.tree_map(jnp.copy, params["qs"]),
+            wm_opt_state=wm_tx.init(wm_params),
+            pi_opt_state=pi_tx.init(params["policy"]),
+            scale=jnp.ones((), jnp.float32),
+        )
+
+    def update(state: AgentState, batch: Batch, key: jax.Array) -> tuple[AgentState, dict]:
+        """One gradient step: world model; policy on detached latents and updated Qs; Polyak."""
+        k_wm, k_pi = jax.random.split(key)
+        wm_params = {k: state.params[k] for k in WM_KEYS}
+        pi_params = state.params["policy"]
+        grad_fn = jax.value_and_grad(
+            lambda p: losses.world_model_loss(
+                wm, cfg, discount, p, pi_params, state.target_qs, batch, k_wm
+            ),
+            has_aux=True,
+        )
+        (wm_loss, (zs, wm_metrics)), wm_grads = grad_fn(wm_params)
+        upd, wm_opt_state = wm_tx.update(wm_grads, state.wm_opt_state, wm_params)
+        wm_params = optax.apply_updates(wm_params, upd)
+
+        pi_grad_fn = jax.value_and_grad(
+            lambda p: losses.policy_loss(
+                wm, cfg, p, losses.sg(wm_params["qs"]), losses.sg(zs), state.scale, batch, k_pi
+            ),
+            has_aux=True,
+        )
+        (pi_loss, (scale, pi_metrics)), pi_grads = pi_grad_fn(pi_params)
+        upd, pi_opt_state = pi_tx.update(pi_grads, state.pi_opt_state, pi_params)
+        pi_params = optax.apply_updates(pi_params, upd)
+
+        new_state = AgentState(
+            params={**wm_params, "policy": pi_params},
+            target_qs=polyak(state.target_qs, wm_params["qs"], cfg.tau),
+            wm_opt_state=wm_opt_state,
+            pi_opt_state=pi_opt_state,
+            scale=scale,
+        )
+        metrics = {
+            **wm_metrics,
+            **pi_metrics,
+            "total_loss": wm_loss + pi_loss,
+            "grad_norm": optax.tree.norm(wm_grads),
+            "pi_grad_norm": optax.tree.norm(pi_grads),
+        }
+        return new_state, metrics
+
+    def plan(
+        state: AgentState, planner_state: PlannerState, obs, first, key, eval_mode: bool = False
+    ):
+        """MPPI actions [E, A] for obs [E, O]; first [E] resets that env's warm start."""
+        return planner.plan(state.params, planner_state, obs, first, key, eval_mode)
+
+    def act_policy(state: AgentState, obs, key, eval_mode: bool = False):
+        """The policy prior alone: tanh(mu) in eval mode, a sample otherwise ([E, O] -> [E, A])."""
+        z = wm.encode(state.params, obs)
+        out = wm.pi(state.params, z, key)
+        return out.mean_action if eval_mode else out.action
+
+    return Agent(
+        cfg,
+        obs_size,
+        action_size,
+        episode_length,
+        discount,
+        iterations,
+        init,
+        update,
+        planner.init,
+        plan,
+        act_policy,
+    )

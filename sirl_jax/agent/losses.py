@@ -1,0 +1,182 @@
+"""TD-MPC2 losses (spec §2.3, §2.5) and the TDMPBC self-imitative term (spec §5).
+
+Shapes: H horizon, B batch, A action, Z latent, O observation, Q num_q.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from sirl_jax.agent import math as am
+from sirl_jax.agent.config import AgentConfig, SirlConfig
+from sirl_jax.agent.world_model import LOG_2PI, WorldModel
+from sirl_jax.types import Batch
+
+sg = jax.lax.stop_gradient
+
+
+def rho_weights(rho: float, n: int) -> jax.Array:
+    """[n] temporal weights rho^t, t = 0..n-1."""
+    return jnp.asarray(rho, jnp.float32) ** jnp.arange(n, dtype=jnp.float32)
+
+
+def td_target(
+    reward: jax.Array, q_next: jax.Array, terminated: jax.Array, discount: float, episodic: bool
+) -> jax.Array:
+    """y = r + gamma * (1 - d) * q_next; the mask only when episodic (HB bootstraps falls)."""
+    cont = 1.0 - terminated if episodic else 1.0
+    return reward + discount * cont * q_next
+
+
+def update_scale(scale: jax.Array, q0: jax.Array, tau: float) -> jax.Array:
+    """RunningScale: S + tau * (max(1, P95 - P5) - S), percentiles over q0 [B] ('linear')."""
+    p5, p95 = jnp.percentile(q0, jnp.array([5.0, 95.0]), method="linear")
+    return scale + tau * (jnp.maximum(1.0, p95 - p5) - scale)
+
+
+def sirl_weight(episode_return: jax.Array, return_ref: jax.Array, sirl: SirlConfig) -> jax.Array:
+    """omega(R) = beta * exp((R - G) / max(|G|, g_eps)), exponent clipped to <= 0 ([B] -> [B]).
+
+    The paper's exp((R - G) / G) flips sign for G < 0 and exceeds beta for R > G; the floored |G|
+    denominator and the clip keep omega in (0, beta] and increasing in R for every G.
+    """
+    x = (episode_return - return_ref) / jnp.maximum(jnp.abs(return_ref), sirl.g_eps)
+    if sirl.clip_exponent:
+        x = jnp.minimum(x, 0.0)
+    return sg(sirl.beta * jnp.exp(x))
+
+
+def world_model_loss(
+    wm: WorldModel,
+    cfg: AgentConfig,
+    discount: float,
+    wm_params: dict,
+    policy_params: dict,
+    target_qs: dict,
+    batch: Batch,
+    key: jax.Array,
+) -> tuple[jax.Array, tuple[jax.Array, dict]]:
+    """L = c_c * L_c + c_r * L_r + c_q * L_q (spec §2.3).
+
+    Returns:
+      loss []; aux = (rollout latents z_0..z_H [H+1, B, Z] with gradients, metrics).
+    """
+    k_pi, k_pair, k_drop = jax.random.split(key, 3)
+    params = {**wm_params, "policy": policy_params}
+    H = batch.action.shape[0]
+    w = rho_weights(cfg.rho, H)
+
+    z_next = sg(wm.encode(params, batch.obs[1:]))  # [H, B, Z] online encoder, no target encoder
+
+    def step(z_t, a_t):
+        z_tp1 = wm.next(params, z_t, a_t)
+        return z_tp1, z_tp1
+
+    z_0 = wm.encode(params, batch.obs[0])
+    _, z_roll = jax.lax.scan(step, z_0, batch.action)
+    zs = jnp.concatenate([z_0[None], z_roll], axis=0)  # [H+1, B, Z]
+
+    pi_next = wm.pi(params, z_next, k_pi)  # a stochastic sample, not the mean
+    q_next = wm.q_pair(target_qs, z_next, pi_next.action, k_pair, "min", None)
+    y = sg(td_target(batch.reward, q_next, batch.terminated, discount, cfg.episodic))  # [H, B]
+
+    consistency = jnp.mean((z_roll - z_next) ** 2, axis=(1, 2))  # [H]
+    r_logits = wm.reward_logits(params, zs[:-1], batch.action)
+    reward_ce = am.two_hot_ce(r_logits, batch.reward, cfg.num_bins, cfg.vmin, cfg.vmax)
+    q_logits = wm.q_logits(wm_params["qs"], zs[:-1], batch.action, k_drop)  # [Q, H, B, bins]
+    value_ce = am.two_hot_ce(q_logits, y[None], cfg.num_bins, cfg.vmin, cfg.vmax)
+
+    l_c = jnp.sum(w * consistency) / H
+    l_r = jnp.sum(w * reward_ce.mean(axis=1)) / H
+    l_q = jnp.sum(w * value_ce.mean(axis=2).sum(axis=0)) / (H * value_ce.shape[0])
+    loss = cfg.consistency_coef * l_c + cfg.reward_coef * l_r + cfg.value_coef * l_q
+    metrics = {
+        "consistency_loss": l_c,
+        "reward_loss": l_r,
+        "value_loss": l_q,
+        "wm_loss": loss,
+        "td_target_mean": jnp.mean(y),
+    }
+    return loss, (zs, metrics)
+
+
+def bc_term(
+    wm: WorldModel,
+    cfg: AgentConfig,
+    policy_params: dict,
+    zs: jax.Array,
+    pi_out,
+    actions: jax.Array,
+    omega: jax.Array,
+) -> jax.Array:
+    """Self-imitative BC per step: [H, B] loss terms (to be rho-weighted).
+
+    loglik: -omega * log pi(a_t | z_t) / A; the mean over action dimensions keeps the term at the
+    O(1) scale of Q/S (a sum over 61 dims of a log density reaches hundreds). mse_*: omega * MSE.
+    """
+    A = actions.shape[-1]
+    form = cfg.sirl.bc_form
+    if form == "loglik":
+        log_lik, _ = wm.pi_log_prob({"policy": policy_params}, zs, actions)
+        per_step = -log_lik / A
+    elif form == "mse_sample":
+        per_step = jnp.mean((pi_out.action[:-1] - actions) ** 2, axis=-1)
+    else:
+        per_step = jnp.mean((pi_out.mean_action[:-1] - actions) ** 2, axis=-1)
+    return omega[None] * per_step
+
+
+def policy_loss(
+    wm: WorldModel,
+    cfg: AgentConfig,
+    policy_params: dict,
+    qs_params: dict,
+    zs: jax.Array,
+    scale: jax.Array,
+    batch: Batch,
+    key: jax.Array,
+) -> tuple[jax.Array, tuple[jax.Array, dict]]:
+    """Policy-prior loss (spec §2.5) plus, when cfg.sirl.enabled, the BC term (spec §5).
+
+    Args:
+      zs: [H+1, B, Z] detached rollout latents; qs_params: detached, updated online Q params.
+    Returns:
+      loss []; aux = (updated running scale [], metrics).
+    """
+    k_sample, k_pair, k_drop = jax.random.split(key, 3)
+    Hp1 = zs.shape[0]
+    A = batch.action.shape[-1]
+    w = rho_weights(cfg.rho, Hp1)
+    out = wm.pi({"policy": policy_params}, zs, k_sample)  # [H+1, B, A]
+    q = wm.q_pair(qs_params, zs, out.action, k_pair, "avg", k_drop)  # [H+1, B], dropout on
+    new_scale = update_scale(scale, sg(q[0]), cfg.tau)  # updated before use
+    if cfg.entropy_form == "scaled":
+        # -alpha * E with E = -A * l_g (current main; the ratio form's gradient away from l_s=-1e-8)
+        ent_term = cfg.entropy_coef * A * out.log_prob_gauss
+    else:
+        # 2023 / HumanoidBench fork: A-scaled Gaussian part, unscaled tanh correction.
+        gauss = jnp.sum(-0.5 * out.eps**2 - out.log_std, axis=-1) - 0.5 * LOG_2PI
+        tanh_corr = jnp.sum(jnp.log(jnp.maximum(0.0, 1.0 - out.action**2) + 1e-6), axis=-1)
+        ent_term = cfg.entropy_coef * (A * gauss - tanh_corr)
+    rl = jnp.sum(w * jnp.mean(ent_term - q / new_scale, axis=1)) / Hp1
+    metrics = {
+        "pi_rl_loss": rl,
+        "pi_scale": new_scale,
+        "pi_entropy": jnp.mean(-out.log_prob),
+        "pi_log_std": jnp.mean(out.log_std),
+        "pi_q": jnp.mean(q),
+    }
+    loss = rl
+    if cfg.sirl.enabled:
+        omega = sirl_weight(batch.episode_return, batch.return_ref, cfg.sirl)
+        bc = bc_term(wm, cfg, policy_params, zs[:-1], out, batch.action, omega)
+        bc_loss = jnp.sum(w[:-1] * jnp.mean(bc, axis=1)) / Hp1
+        loss = rl + bc_loss
+        metrics["sirl_loss"] = bc_loss
+        metrics["sirl_weight_mean"] = jnp.mean(omega)
+    else:
+        metrics["sirl_loss"] = jnp.zeros(())
+        metrics["sirl_weight_mean"] = jnp.zeros(())
+    metrics["pi_loss"] = loss
+    return loss, (new_scale, metrics)

@@ -1,0 +1,378 @@
+"""Device-resident replay buffer of whole episodes, with per-trajectory returns (TDMPBC).
+
+Storage follows TD-MPC2's episode format, one entry per observation, each stored once:
+entry 0 of an episode is its reset observation (action and reward NaN, flags False), entry k >= 1
+is (s_k, a_{k-1}, r_{k-1}, terminated_{k-1}, truncated_{k-1}). An episode of T transitions takes
+T + 1 entries. Each env writes into its own ring of L = capacity // E entries, so `capacity`
+counts entries as TD-MPC2's `LazyTensorStorage` does (one per transition plus one reset entry per
+episode). The first `add` of an episode writes two entries (reset obs, then s_1); every other `add`
+writes one.
+
+An episode enters the episode table [E, M] (start, length, return R) when it ends, if it has
+more than H + 1 entries (HumanoidBench fork rule) and still fits in its ring. A shorter one is
+dropped and its ring space is reused. A recorded episode leaves the table as soon as the ring
+overwrites its first entry; since each env's episodes are recorded and evicted in order, the live
+ones are the contiguous range [ep_head, ep_tail) of that env's table ring. One eviction check per
+`add` suffices: an `add` moves the write position by at most 2 and recorded episodes are at least
+H + 2 >= 3 entries apart. M = L // (H + 2) + 1 bounds the number of live recorded episodes.
+
+Sampling is TD-MPC2's `SliceSampler`: the episode is drawn uniformly among the live recorded
+episodes of all envs, then the start uniformly among its length - H windows of H + 1 entries.
+A window never crosses an episode boundary and never touches a running episode.
+
+R (`discount` = 1: undiscounted sum of the episode's rewards; else sum of discount^k r_k) is
+recorded when the episode ends. `r_max`: "in_buffer" is the masked max of R over live table
+entries (recomputed at every `add`, so it drops when the best episode is evicted); "all_time" is
+the running max over every recorded episode. Both are -inf before the first recorded episode.
+
+Shape letters: E envs, L entries per env ring, M table slots per env, B batch, H horizon,
+O observation size, A action size.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import numbers
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from sirl_jax.buffer_memory import BufferTooLargeError, check_buffer_fits
+from sirl_jax.types import Batch
+
+__all__ = [
+    "Buffer", "BufferState", "BufferTooLargeError", "RMAX_MODES",
+    "buffer_nbytes", "check_buffer_fits", "make_buffer",
+]
+
+RMAX_MODES = ("in_buffer", "all_time")
+
+
+@struct.dataclass
+class BufferState:
+    """Replay storage, episode table and per-env episode bookkeeping.
+
+    Absolute positions count entries written by one env since `init`; ring row = position % L.
+    Absolute episode numbers count recorded episodes of one env; table slot = number % M.
+
+    Attributes:
+      obs: [E, L, O] float32 observations.
+      action: [E, L, A] float32 action that led to the entry (NaN in entry 0 of an episode).
+      reward: [E, L] float32 reward of that action (NaN in entry 0).
+      terminated: [E, L] bool the entry is terminal (a fall).
+      truncated: [E, L] bool the entry hit the time limit.
+      ep_start: [E, M] int32 absolute position of entry 0 of a recorded episode.
+      ep_length: [E, M] int32 entries of a recorded episode (transitions + 1).
+      ep_return: [E, M] float32 return R of a recorded episode.
+      ep_head: [E] int32 number of the oldest live recorded episode.
+      ep_tail: [E] int32 number of episodes recorded so far.
+      write_pos: [E] int32 absolute position of the next entry.
+      cur_start: [E] int32 absolute position of the running episode's entry 0.
+      cur_return: [E] float32 return of the running episode so far.
+      cur_discount: [E] float32 discount^k for the running episode's next reward.
+      cur_fresh: [E] bool the next `add` starts a new episode.
+      r_max: [] float32 reference return for the configured `rmax_mode` (-inf before any).
+      r_max_all_time: [] float32 max R over every recorded episode (-inf before any).
+      transitions_added: [] int32 transitions passed to `add` so far (all envs).
+      episodes_recorded: [] int32 episodes recorded so far (all envs, evicted ones included).
+    """
+
+    obs: jax.Array
+    action: jax.Array
+    reward: jax.Array
+    terminated: jax.Array
+    truncated: jax.Array
+    ep_start: jax.Array
+    ep_length: jax.Array
+    ep_return: jax.Array
+    ep_head: jax.Array
+    ep_tail: jax.Array
+    write_pos: jax.Array
+    cur_start: jax.Array
+    cur_return: jax.Array
+    cur_discount: jax.Array
+    cur_fresh: jax.Array
+    r_max: jax.Array
+    r_max_all_time: jax.Array
+    transitions_added: jax.Array
+    episodes_recorded: jax.Array
+
+
+@dataclasses.dataclass(frozen=True)
+class Buffer:
+    """Static configuration and the pure buffer functions. Build with `make_buffer`."""
+
+    capacity: int
+    num_envs: int
+    obs_size: int
+    action_size: int
+    horizon: int
+    batch_size: int
+    discount: float = 1.0
+    rmax_mode: str = "in_buffer"
+
+    @property
+    def ring_size(self) -> int:
+        """L, entries per env ring."""
+        return self.capacity // self.num_envs
+
+    @property
+    def table_size(self) -> int:
+        """M, episode-table slots per env (live recorded episodes are >= H + 2 entries)."""
+        return self.ring_size // (self.horizon + 2) + 1
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes `init` allocates (storage, episode table and counters)."""
+        shapes = jax.eval_shape(self.init)
+        return sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(shapes))
+
+    def describe(self) -> str:
+        """One line: capacity, bytes per transition, total size."""
+        total = self.num_envs * self.ring_size
+        return (
+            f"replay buffer: {total:,} entries ({self.num_envs} envs x {self.ring_size:,}), "
+            f"{self.nbytes / total:.1f} B/transition, {self.nbytes / 1e9:.3f} GB, "
+            f"H={self.horizon}, B={self.batch_size}, R_max={self.rmax_mode}, "
+            f"discount={self.discount}"
+        )
+
+    def init(self) -> BufferState:
+        """An empty buffer (zeros). Pure: works under `jit` and `vmap` over seeds."""
+        e, l, m = self.num_envs, self.ring_size, self.table_size
+        f32, i32 = jnp.float32, jnp.int32
+        return BufferState(
+            obs=jnp.zeros((e, l, self.obs_size), f32),
+            action=jnp.zeros((e, l, self.action_size), f32),
+            reward=jnp.zeros((e, l), f32),
+            terminated=jnp.zeros((e, l), bool),
+            truncated=jnp.zeros((e, l), bool),
+            ep_start=jnp.zeros((e, m), i32),
+            ep_length=jnp.zeros((e, m), i32),
+            ep_return=jnp.zeros((e, m), f32),
+            ep_head=jnp.zeros((e,), i32),
+            ep_tail=jnp.zeros((e,), i32),
+            write_pos=jnp.zeros((e,), i32),
+            cur_start=jnp.zeros((e,), i32),
+            cur_return=jnp.zeros((e,), f32),
+            cur_discount=jnp.ones((e,), f32),
+            cur_fresh=jnp.ones((e,), bool),
+            r_max=jnp.full((), -jnp.inf, f32),
+            r_max_all_time=jnp.full((), -jnp.inf, f32),
+            transitions_added=jnp.zeros((), i32),
+            episodes_recorded=jnp.zeros((), i32),
+        )
+
+    def add(
+        self,
+        state: BufferState,
+        obs: jax.Array,
+        action: jax.Array,
+        reward: jax.Array,
+        next_obs: jax.Array,
+        terminated: jax.Array,
+        truncated: jax.Array,
+    ) -> BufferState:
+        """Adds one transition per env.
+
+        Args:
+          state: the buffer.
+          obs: [E, O] s_t (the reset observation when the previous `add` ended the episode).
+          action: [E, A] a_t.
+          reward: [E] r_t.
+          next_obs: [E, O] s_{t+1} before any auto-reset (`EnvState.final_obs`).
+          terminated: [E] bool, s_{t+1} is terminal.
+          truncated: [E] bool, the time limit was hit at s_{t+1}.
+
+        Returns:
+          The updated buffer. The episode is recorded when terminated | truncated.
+        """
+        self._check_add_shapes(obs, action, reward, next_obs, terminated, truncated)
+        e, l, m, h = self.num_envs, self.ring_size, self.table_size, self.horizon
+        env = jnp.arange(e)
+        terminated = jnp.asarray(terminated, bool)
+        truncated = jnp.asarray(truncated, bool)
+        reward = jnp.asarray(reward, jnp.float32)
+        fresh = state.cur_fresh
+        cur_start = jnp.where(fresh, state.write_pos, state.cur_start)
+        # Row L is out of range: mode="drop" skips the reset entry unless the episode starts here.
+        first_row = jnp.where(fresh, state.write_pos % l, l)
+        step_pos = state.write_pos + fresh.astype(jnp.int32)
+        envs2 = jnp.concatenate([env, env])
+        rows2 = jnp.concatenate([first_row, step_pos % l])
+
+        def write(buf, first, step):
+            return buf.at[envs2, rows2].set(jnp.concatenate([first, step]), mode="drop")
+
+        no_flag = jnp.zeros((e,), bool)
+        new_pos = step_pos + 1
+        discount_k = jnp.where(fresh, 1.0, state.cur_discount)
+        cur_return = jnp.where(fresh, 0.0, state.cur_return) + discount_k * reward
+        done = terminated | truncated
+        length = new_pos - cur_start
+
+        # Evict the oldest recorded episode once the ring has overwritten its entry 0.
+        head_start = state.ep_start[env, state.ep_head % m]
+        evict = (state.ep_head < state.ep_tail) & (head_start < new_pos - l)
+        ep_head = state.ep_head + evict.astype(jnp.int32)
+
+        keep = done & (length >= h + 2) & (length <= l)
+        slot = jnp.where(keep, state.ep_tail % m, m)
+        ep_start = state.ep_start.at[env, slot].set(cur_start, mode="drop")
+        ep_length = state.ep_length.at[env, slot].set(length, mode="drop")
+        ep_return = state.ep_return.at[env, slot].set(cur_return, mode="drop")
+        ep_tail = state.ep_tail + keep.astype(jnp.int32)
+        # HumanoidBench drops episodes of <= H + 1 entries: reuse their ring space.
+        write_pos = jnp.where(done & (length < h + 2), cur_start, new_pos)
+
+        new_best = jnp.max(jnp.where(keep, cur_return, -jnp.inf))
+        r_max_all_time = jnp.maximum(state.r_max_all_time, new_best)
+        if self.rmax_mode == "all_time":
+            r_max = r_max_all_time
+        else:
+            rel = (jnp.arange(m)[None, :] - ep_head[:, None]) % m
+            live = rel < (ep_tail - ep_head)[:, None]
+            r_max = jnp.max(jnp.where(live, ep_return, -jnp.inf))
+
+        return state.replace(
+            obs=write(state.obs, obs, next_obs),
+            action=write(state.action, jnp.full_like(action, jnp.nan), action),
+            reward=write(state.reward, jnp.full_like(reward, jnp.nan), reward),
+            terminated=write(state.terminated, no_flag, terminated),
+            truncated=write(state.truncated, no_flag, truncated),
+            ep_start=ep_start,
+            ep_length=ep_length,
+            ep_return=ep_return,
+            ep_head=ep_head,
+            ep_tail=ep_tail,
+            write_pos=write_pos,
+            cur_start=cur_start,
+            cur_return=cur_return,
+            cur_discount=discount_k * self.discount,
+            cur_fresh=done,
+            r_max=r_max,
+            r_max_all_time=r_max_all_time,
+            transitions_added=state.transitions_added + e,
+            episodes_recorded=state.episodes_recorded + jnp.sum(keep, dtype=jnp.int32),
+        )
+
+    def sample(self, state: BufferState, key: jax.Array) -> Batch:
+        """B windows of H + 1 consecutive entries, each within one live recorded episode.
+
+        The episode is drawn uniformly among live recorded episodes, then the window start
+        uniformly within it. Only meaningful when `can_sample(state)`; before that the batch
+        holds zeros and arbitrary entries and `return_ref` is -inf.
+
+        Returns:
+          `Batch` (time-major): obs [H+1, B, O]; action [H, B, A], reward [H, B] and
+          terminated [H, B] (float 0/1) from entries 1..H of the windows; episode_return [B];
+          return_ref [] = `r_max(state)`.
+        """
+        e, l, m, h = self.num_envs, self.ring_size, self.table_size, self.horizon
+        b = self.batch_size
+        key_episode, key_start = jax.random.split(key)
+        count = state.ep_tail - state.ep_head
+        cum = jnp.cumsum(count)
+        u = jax.random.randint(key_episode, (b,), 0, jnp.maximum(cum[-1], 1))
+        env = jnp.minimum(jnp.searchsorted(cum, u, side="right"), e - 1)
+        slot = (state.ep_head[env] + u - (cum[env] - count[env])) % m
+        length = state.ep_length[env, slot]
+        offset = jax.random.randint(key_start, (b,), 0, jnp.maximum(length - h, 1))
+        pos = state.ep_start[env, slot] + offset
+        rows = (pos[None, :] + jnp.arange(h + 1)[:, None]) % l
+        envs = jnp.broadcast_to(env[None, :], rows.shape)
+        return Batch(
+            obs=state.obs[envs, rows],
+            action=state.action[envs[1:], rows[1:]],
+            reward=state.reward[envs[1:], rows[1:]],
+            terminated=state.terminated[envs[1:], rows[1:]].astype(jnp.float32),
+            episode_return=state.ep_return[env, slot],
+            return_ref=state.r_max,
+        )
+
+    def can_sample(self, state: BufferState) -> jax.Array:
+        """[] bool, at least one live recorded (sampleable) episode."""
+        return self.num_episodes(state) > 0
+
+    def r_max(self, state: BufferState) -> jax.Array:
+        """[] float32 R_max for `rmax_mode`; -inf before the first recorded episode."""
+        return state.r_max
+
+    def num_transitions(self, state: BufferState) -> jax.Array:
+        """[] int32 transitions added so far (all envs; evicted and running ones included)."""
+        return state.transitions_added
+
+    def num_episodes(self, state: BufferState) -> jax.Array:
+        """[] int32 live recorded episodes (the ones `sample` draws from)."""
+        return jnp.sum(state.ep_tail - state.ep_head)
+
+    def _check_add_shapes(self, obs, action, reward, next_obs, terminated, truncated) -> None:
+        e, o, a = self.num_envs, self.obs_size, self.action_size
+        expected = {
+            "obs": (obs, (e, o)),
+            "action": (action, (e, a)),
+            "reward": (reward, (e,)),
+            "next_obs": (next_obs, (e, o)),
+            "terminated": (terminated, (e,)),
+            "truncated": (truncated, (e,)),
+        }
+        for name, (x, shape) in expected.items():
+            if jnp.shape(x) != shape:
+                raise ValueError(f"Buffer.add: {name} has shape {jnp.shape(x)}, expected {shape}")
+
+
+def make_buffer(
+    capacity: int,
+    num_envs: int,
+    obs_size: int,
+    action_size: int,
+    horizon: int,
+    batch_size: int,
+    *,
+    discount: float = 1.0,
+    rmax_mode: str = "in_buffer",
+) -> Buffer:
+    """Builds a `Buffer`; validates the static configuration.
+
+    Args:
+      capacity: entries in all (one per transition plus one per episode); each env gets
+        capacity // num_envs.
+      num_envs: E, envs adding one transition each per `add`.
+      obs_size, action_size: O and A.
+      horizon: H; samples hold H + 1 observations. Episodes of <= H + 1 entries are dropped.
+      batch_size: B windows per `sample`.
+      discount: 1.0 records the undiscounted return; in (0, 1) the discounted one.
+      rmax_mode: "in_buffer" (max R over live episodes) or "all_time" (max over all recorded).
+    """
+    for name, value, low in (
+        ("num_envs", num_envs, 1),
+        ("obs_size", obs_size, 1),
+        ("action_size", action_size, 1),
+        ("horizon", horizon, 1),
+        ("batch_size", batch_size, 1),
+    ):
+        if not isinstance(value, numbers.Integral) or value < low:
+            raise ValueError(f"make_buffer: {name} must be an int >= {low}, got {value!r}")
+    min_capacity = num_envs * (horizon + 2)
+    if not isinstance(capacity, numbers.Integral) or capacity < min_capacity:
+        raise ValueError(
+            f"make_buffer: capacity must be an int >= num_envs * (horizon + 2) = {min_capacity} "
+            f"so one sampleable episode fits per env, got {capacity!r}"
+        )
+    if capacity // num_envs >= 2**31 - 2**20:
+        raise ValueError(f"make_buffer: capacity // num_envs must be < 2**31, got {capacity!r}")
+    if not 0.0 < discount <= 1.0:
+        raise ValueError(f"make_buffer: discount must be in (0, 1], got {discount!r}")
+    if rmax_mode not in RMAX_MODES:
+        raise ValueError(f"make_buffer: rmax_mode must be one of {RMAX_MODES}, got {rmax_mode!r}")
+    return Buffer(
+        capacity, num_envs, obs_size, action_size, horizon, batch_size, float(discount), rmax_mode
+    )
+
+
+def buffer_nbytes(
+    capacity: int, num_envs: int, obs_size: int, action_size: int, horizon: int
+) -> int:
+    """Bytes a buffer of this size allocates (storage, episode table and counters)."""
+    return make_buffer(capacity, num_envs, obs_size, action_size, horizon, 1).nbytes

@@ -1,0 +1,184 @@
+"""Checkpoints of any pytree: orbax-checkpoint underneath, atomic, verified, last N kept.
+
+A checkpoint is a directory `<root>/<step>/` holding named items (each a pytree: the train
+state, optionally the replay buffer) and a small JSON `meta` item. Orbax writes every step to
+`<step>.orbax-checkpoint-tmp*` and renames it into place only when all items are on disk, so a
+crash mid-save leaves the previous checkpoints untouched and the half-written one invisible.
+After the rename we record each file's size and CRC32 in `<step>/sirl_checksums.json`; restore
+checks them first, so a damaged file is named instead of silently loading garbage.
+
+Nothing here ever deletes a checkpoint except orbax's own `max_to_keep` rotation on save.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import zlib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import jax
+import orbax.checkpoint as ocp
+
+CHECKSUMS = "sirl_checksums.json"
+_META = "meta"
+
+# Orbax logs every save/restore at INFO through absl; the shell reports checkpoints itself.
+logging.getLogger("absl").setLevel(logging.WARNING)
+
+
+class CheckpointError(RuntimeError):
+    """A checkpoint is missing, damaged, or does not match the state it should restore into."""
+
+
+def _file_crc(path: Path) -> int:
+    crc = 0
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 22):
+            crc = zlib.crc32(chunk, crc)
+    return crc
+
+
+def _scan(step_dir: Path) -> dict[str, list[int]]:
+    """{relative path: [size, crc32]} of every file under a step directory."""
+    out = {}
+    for path in sorted(step_dir.rglob("*")):
+        if path.is_file() and path.name != CHECKSUMS:
+            out[str(path.relative_to(step_dir))] = [path.stat().st_size, _file_crc(path)]
+    return out
+
+
+def _abstract(tree: Any) -> Any:
+    """ShapeDtypeStructs (with a sharding, which orbax needs) for arrays or abstract arrays."""
+    device = jax.sharding.SingleDeviceSharding(jax.devices()[0])
+
+    def leaf(x):
+        sharding = getattr(x, "sharding", None) or device
+        return jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=sharding)
+
+    return jax.tree.map(leaf, tree)
+
+
+class Checkpointer:
+    """Saves and restores named pytrees under `directory`, keeping the newest `max_to_keep`.
+
+    Items are pytrees of arrays (jax or numpy). Integer steps name the checkpoints; the shell
+    uses the env-step counter.
+    """
+
+    def __init__(self, directory: str | os.PathLike, max_to_keep: int = 3):
+        if max_to_keep < 1:
+            raise ValueError(f"max_to_keep must be >= 1, got {max_to_keep}")
+        self.directory = Path(directory).absolute()
+        options = ocp.CheckpointManagerOptions(
+            max_to_keep=max_to_keep, enable_async_checkpointing=False, create=True
+        )
+        self._manager = ocp.CheckpointManager(self.directory, options=options)
+
+    def steps(self) -> list[int]:
+        """Steps of all complete checkpoints, ascending (half-written ones are not listed)."""
+        self._manager.reload()
+        return sorted(self._manager.all_steps())
+
+    def latest_step(self) -> int | None:
+        steps = self.steps()
+        return steps[-1] if steps else None
+
+    def step_dir(self, step: int) -> Path:
+        return self.directory / str(step)
+
+    def item_names(self, step: int) -> list[str]:
+        """Names of the pytree items stored at `step` (e.g. `state`, `buffer`)."""
+        step_dir = self.step_dir(step)
+        return sorted(p.name for p in step_dir.iterdir() if p.is_dir() and p.name != _META)
+
+    def save(self, step: int, items: Mapping[str, Any], meta: Mapping | None = None) -> Path:
+        """Writes `items` (name -> pytree) and `meta` (JSON-able) as checkpoint `step`.
+
+        Blocks until the data is on disk. Raises CheckpointError if `step` already exists.
+        """
+        if _META in items:
+            raise ValueError(f"item name {_META!r} is reserved")
+        if step in self.steps():
+            raise CheckpointError(f"checkpoint {self.step_dir(step)} already exists")
+        args = {name: ocp.args.StandardSave({"tree": tree}) for name, tree in items.items()}
+        args[_META] = ocp.args.JsonSave(dict(meta or {}))
+        self._manager.save(step, args=ocp.args.Composite(**args), force=True)
+        self._manager.wait_until_finished()
+        step_dir = self.step_dir(step)
+        tmp = step_dir / (CHECKSUMS + ".tmp")
+        tmp.write_text(json.dumps(_scan(step_dir), indent=0))
+        os.replace(tmp, step_dir / CHECKSUMS)
+        return step_dir
+
+    def verify(self, step: int) -> None:
+        """Raises CheckpointError naming the first file whose size or CRC32 changed."""
+        step_dir = self.step_dir(step)
+        if not step_dir.is_dir():
+            raise CheckpointError(f"no checkpoint at {step_dir}")
+        record = step_dir / CHECKSUMS
+        if not record.exists():
+            return  # written by an older version, or the process died right after the rename
+        try:
+            expected = json.loads(record.read_text())
+        except (OSError, ValueError) as e:
+            raise CheckpointError(f"{record} is unreadable ({e})") from e
+        for rel, (size, crc) in expected.items():
+            path = step_dir / rel
+            if not path.is_file():
+                raise CheckpointError(f"checkpoint file {path} is missing")
+            if path.stat().st_size != size or _file_crc(path) != crc:
+                raise CheckpointError(f"checkpoint file {path} is damaged (size/CRC32 changed)")
+
+    def meta(self, step: int) -> dict:
+        """The JSON metadata saved with `step`."""
+        path = self.step_dir(step)
+        try:
+            restored = self._manager.restore(
+                step, args=ocp.args.Composite(**{_META: ocp.args.JsonRestore()})
+            )
+        except Exception as e:  # orbax raises json, key and value errors alike
+            raise CheckpointError(f"checkpoint {path}: metadata unreadable ({e})") from e
+        return dict(restored[_META])
+
+    def restore(self, targets: Mapping[str, Any], step: int | None = None) -> dict[str, Any]:
+        """Restores items of checkpoint `step` (default: latest) into the shapes of `targets`.
+
+        Args:
+          targets: name -> pytree of arrays or `jax.ShapeDtypeStruct`s with the structure,
+            shapes and dtypes to restore (e.g. `jax.eval_shape(train.init, key)`).
+          step: which checkpoint; None for the latest.
+
+        Returns:
+          name -> restored pytree (jax arrays), plus `meta` (a dict).
+
+        Raises:
+          CheckpointError: no checkpoint, a damaged file (named), or a structure mismatch.
+        """
+        if step is None:
+            step = self.latest_step()
+            if step is None:
+                raise CheckpointError(f"no checkpoint in {self.directory}")
+        self.verify(step)
+        step_dir = self.step_dir(step)
+        args = {
+            name: ocp.args.StandardRestore({"tree": _abstract(tree)})
+            for name, tree in targets.items()
+        }
+        args[_META] = ocp.args.JsonRestore()
+        try:
+            restored = self._manager.restore(step, args=ocp.args.Composite(**args))
+        except Exception as e:  # orbax/tensorstore raise many types; all mean "unreadable"
+            first = str(e).strip().splitlines()[0][:300] if str(e).strip() else ""
+            raise CheckpointError(
+                f"checkpoint {step_dir} is unreadable ({type(e).__name__}: {first})"
+            ) from e
+        out = {name: restored[name]["tree"] for name in targets}
+        out[_META] = dict(restored[_META])
+        return out
+
+    def close(self) -> None:
+        self._manager.close()

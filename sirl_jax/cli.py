@@ -1,0 +1,603 @@
+"""The shell: `python -m sirl_jax {train,tasks,eval}` (see docs/cli.md).
+
+`train` turns the `Config` dataclass tree into flags with tyro (`--agent.horizon 3`,
+`--train.num-envs 4`: every field is settable), adds short flags for the common ones (`--task`,
+`--seed`, `--steps`, `--num-envs`, `--model-size`, `--beta`, `--g`, ...), starts from a named
+preset (`--preset smoke`), then runs the loop: call the jitted train step, log the metrics it
+returns, evaluate and checkpoint at chunk boundaries. Nothing in here runs under `jit` except
+the train step, its non-finite guard and `evaluate`.
+
+Exit codes: 0 done (or stopped by Ctrl-C after saving), 1 training failure (non-finite loss or
+observation, out of memory), 2 bad input (one `error:` line), 130 aborted by a second Ctrl-C.
+No error path deletes or overwrites anything already saved.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import tyro
+
+from sirl_jax import progress as prog
+from sirl_jax import runlog
+from sirl_jax.checkpoint import Checkpointer, CheckpointError
+from sirl_jax.config import Config, TrainConfig, get_preset
+
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_ABORTED = 0, 1, 2, 130
+_EVAL_STREAM = 0x6576616C  # folded into the seed so evaluation keys never meet training keys
+_CPU_WARN_SECONDS = 3600.0
+
+_AGENT_SHORT = {
+    "--model-size": "--agent.model-size",
+    "--horizon": "--agent.horizon",
+    "--batch-size": "--agent.batch-size",
+    "--beta": "--agent.sirl.beta",
+    "--g": "--agent.sirl.g-source",
+    "--bc-form": "--agent.sirl.bc-form",
+    "--sirl": "--agent.sirl.enabled",
+    "--no-sirl": "--agent.sirl.no-enabled",
+}
+
+RESUME_MUTABLE = frozenset(
+    {"train.steps", "train.eval_every", "train.eval_episodes", "train.checkpoint_every",
+     "train.log_every", "train.save_buffer"}
+)  # fmt: skip
+"""Config fields a resumed run may change; every other field must match the saved config."""
+
+
+class UsageError(Exception):
+    """Bad input: printed as one `error:` line, exit code 2."""
+
+
+class TrainingFailure(Exception):
+    """The run stopped on a failure (non-finite values, out of memory): exit code 1."""
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainArgs:
+    """Train a TD-MPC2 + TDMPBC agent. Short flags: --task --seed --steps --num-envs
+    --chunk-steps --utd --buffer-size --eval-every --checkpoint-every --log-every
+    --[no-]save-buffer (train.*); --model-size --horizon --batch-size (agent.*); --beta,
+    --g rmax|target, --bc-form, --[no-]sirl (agent.sirl.*)."""
+
+    config: Annotated[Config, tyro.conf.arg(name="")]
+    preset: str = "default"
+    """Config the flags start from: default (reference), smoke (CPU, ~minute), cpu."""
+    run_dir: str | None = None
+    """Run directory (default: runs/<task>-s<seed>-<UTC time>); must not exist or be empty."""
+    resume: str | None = None
+    """Continue the run in this directory from its latest checkpoint, with its saved config."""
+    resume_step: int | None = None
+    """With --resume: continue from this checkpoint (env step) instead of the latest."""
+    keep: int = 3
+    """Checkpoints kept by rotation (>= 2 keeps an older good one next to the newest)."""
+    guard: bool = True
+    """Keep the pre-chunk state so a non-finite chunk is rolled back and the last good state
+    checkpointed (one extra on-device copy of the train state, buffer included)."""
+    progress: bool = True
+    """Show the tqdm progress bar."""
+    tensorboard: bool = True
+    """Write TensorBoard event files under <run_dir>/tb."""
+    wandb: bool = False
+    """Also log to Weights & Biases (needs `pip install wandb`)."""
+    wandb_project: str = "sirl_jax"
+    """W&B project name."""
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalArgs:
+    """Evaluate a run's checkpoint and print its metrics as one JSON line."""
+
+    run: str
+    """The run directory."""
+    step: int | None = None
+    """The checkpoint (env step); default: the latest."""
+    episodes: int | None = None
+    """Episodes (default: the run's train.eval_episodes)."""
+
+
+# ---------------------------------------------------------------- parsing
+
+
+def _flag_value(argv: list[str], flag: str) -> str | None:
+    for i, arg in enumerate(argv):
+        if arg == flag and i + 1 < len(argv):
+            return argv[i + 1]
+        if arg.startswith(flag + "="):
+            return arg.split("=", 1)[1]
+    return None
+
+
+def expand_short_flags(argv: list[str]) -> list[str]:
+    """Rewrites `--seed 3` / `--seed=3` to `--train.seed 3`, etc.; other args are kept."""
+    table = dict(_AGENT_SHORT)
+    for f in dataclasses.fields(TrainConfig):
+        dashed = f.name.replace("_", "-")
+        table[f"--{dashed}"] = f"--train.{dashed}"
+        table[f"--no-{dashed}"] = f"--train.no-{dashed}"
+    out = []
+    for arg in argv:
+        name, eq, value = arg.partition("=")
+        name = name.replace("_", "-") if name.startswith("--") else name
+        out.append(table[name] + eq + value if name in table else arg)
+    return out
+
+
+@contextlib.contextmanager
+def _config_errors_as_usage_errors():
+    """Turns a config `__post_init__` ValueError into one `error:` line instead of tyro's box.
+
+    Uses tyro's (private, version-pinned by pyproject) parse-error hook when present.
+    """
+    errors = getattr(tyro, "_errors", None)
+    hook = getattr(errors, "on_parse_error", None)
+    failure = getattr(errors, "InstantiationFailure", None)
+
+    def handle(event) -> None:
+        if failure is not None and isinstance(event, failure):
+            arg = getattr(event, "argument", None)
+            flags = getattr(getattr(arg, "lowered", None), "name_or_flags", None)
+            raise UsageError(f"{'/'.join(flags)}: {event.message}" if flags else event.message)
+
+    try:
+        if hook is None:
+            yield
+        else:
+            with hook(handle):
+                yield
+    except ValueError as e:
+        raise UsageError(str(e)) from e
+
+
+def parse_train_args(argv: list[str]) -> TrainArgs:
+    """Parses `train` flags; with --resume, refuses overrides outside RESUME_MUTABLE."""
+    argv = expand_short_flags(argv)
+    resume, preset = _flag_value(argv, "--resume"), _flag_value(argv, "--preset")
+    if resume is not None:
+        if preset is not None:
+            raise UsageError("--preset cannot be combined with --resume (the saved config is used)")
+        if not Path(resume).is_dir():
+            raise UsageError(f"--resume {resume}: no such run directory")
+        base = runlog.load_config(Path(resume), Config)
+    else:
+        try:
+            base = get_preset(preset or "default")
+        except KeyError as e:
+            raise UsageError(e.args[0]) from e
+    default = TrainArgs(config=base, preset=preset or "default")
+    with _config_errors_as_usage_errors():
+        args = tyro.cli(TrainArgs, default=default, args=argv, prog="python -m sirl_jax train")
+    if args.keep < 1:
+        raise UsageError(f"--keep={args.keep} is invalid; allowed: an int >= 1")
+    if resume is not None:
+        old, new = runlog.flatten_config(base), runlog.flatten_config(args.config)
+        refused = [k for k in old if old[k] != new[k] and k not in RESUME_MUTABLE]
+        if refused:
+            detail = ", ".join(f"{k} (saved {old[k]!r}, given {new[k]!r})" for k in refused)
+            allowed = ", ".join(sorted(RESUME_MUTABLE))
+            raise UsageError(f"--resume cannot change {detail}; a resumed run may change {allowed}")
+    return args
+
+
+# ---------------------------------------------------------------- building blocks
+
+
+def load_task(task: str):
+    """(TaskSpec, Env) for a registry id or alias, or a `dmc:` / `playground:` env."""
+    from sirl_jax import train as train_lib
+
+    try:
+        spec = train_lib.load_task(task)
+    except KeyError as e:
+        raise UsageError(e.args[0]) from e
+    except ImportError as e:
+        raise UsageError(f"--task {task} needs an optional package: {e}") from e
+    return spec, spec.factory()
+
+
+def _scalars(tree: Any, prefix: str = "") -> dict[str, float]:
+    """Flattens a (nested) metrics dict of host arrays to {name: float} (mean if not scalar)."""
+    out = {}
+    for name, value in tree.items():
+        if isinstance(value, dict):
+            out.update(_scalars(value, f"{prefix}{name}/"))
+        else:
+            import numpy as np
+
+            out[prefix + name] = float(np.mean(value))
+    return out
+
+
+def _tree_nbytes(tree: Any) -> int:
+    import jax
+
+    return sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(tree))
+
+
+def guarded(step):
+    """`step` that returns its input state unchanged when the chunk's metrics show a failure.
+
+    Pure; jit it with `donate_argnums=0`. Costs one extra copy of the state on device.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    def guarded_step(state):
+        new_state, metrics = step(state)
+        counts = [v for k, v in metrics.items() if prog.is_failure_metric(k)]
+        bad = jnp.any(jnp.stack([jnp.any(c != 0) for c in counts])) if counts else False
+        keep = jax.tree.map(lambda old, new: jnp.where(bad, old, new), state, new_state)
+        return keep, metrics
+
+    return guarded_step
+
+
+def save_checkpoint(ckpt: Checkpointer, state: Any, save_buffer: bool) -> int:
+    """Saves `state` at its env step (the buffer only if `save_buffer`); no-op if it exists."""
+    import jax
+
+    step, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
+    if step not in ckpt.steps():
+        items = {"state": state.replace(buffer=None)}
+        if save_buffer:
+            items["buffer"] = state.buffer
+        meta = {"env_steps": step, "updates": updates, "save_buffer": save_buffer,
+                "time": time.time()}  # fmt: skip
+        ckpt.save(step, items, meta)
+    return step
+
+
+def restore_checkpoint(ckpt: Checkpointer, train: Any, key: Any, step: int | None = None):
+    """(state, step) from checkpoint `step` (default latest); an empty buffer if none saved."""
+    import jax
+
+    steps = ckpt.steps()
+    if not steps:
+        raise CheckpointError(f"no checkpoint in {ckpt.directory}: nothing to resume")
+    step = steps[-1] if step is None else step
+    if step not in steps:
+        raise CheckpointError(f"no checkpoint at env step {step}; available: {steps}")
+    abstract = jax.eval_shape(train.init, key)
+    has_buffer = "buffer" in ckpt.item_names(step)
+    targets = {"state": abstract.replace(buffer=None)}
+    if has_buffer:
+        targets["buffer"] = abstract.buffer
+    try:
+        restored = ckpt.restore(targets, step)
+    except CheckpointError as e:
+        older = [s for s in steps if s < step]
+        hint = f"; older checkpoints: {older} (--resume-step N)" if older else ""
+        raise CheckpointError(f"{e}; nothing was deleted{hint}") from e
+    if has_buffer:
+        buffer = restored["buffer"]
+    else:
+        print("note: the checkpoint has no replay buffer (--no-save-buffer); resuming with an "
+              "empty one", file=sys.stderr)  # fmt: skip
+        buffer = jax.jit(train.init)(key).buffer
+    return restored["state"].replace(buffer=buffer), step
+
+
+class _StopOnSigint:
+    """First Ctrl-C: finish the chunk, save, exit 0. Second: KeyboardInterrupt (abort)."""
+
+    def __enter__(self) -> _StopOnSigint:
+        self.requested = False
+        self._previous = None
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        print("\nCtrl-C: finishing the chunk, then saving a checkpoint (Ctrl-C again aborts)",
+              file=sys.stderr)  # fmt: skip
+
+    def __exit__(self, *exc) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+
+def summary(config: Config, spec: Any, buffer_line: str, run_dir: Path) -> str:
+    """The resolved-config lines printed before a run starts."""
+    import jax
+
+    t, a = config.train, config.agent
+    arch = a.arch
+    sirl = (f"TDMPBC beta={a.sirl.beta:g} G={a.sirl.g_source} ({a.sirl.bc_form})"
+            if a.sirl.enabled else "plain TD-MPC2 (no BC term)")  # fmt: skip
+    bar = "none" if spec.success_bar is None else f"{spec.success_bar:g}"
+    every = lambda n: f"{n:,}" if n else "never"
+    return "\n".join([
+        f"task {spec.id} (T={spec.episode_length}, success bar {bar}), seed {t.seed}, "
+        f"{t.steps:,} env steps, E={t.num_envs} x K={t.chunk_steps} per call, utd {t.utd:g}",
+        f"agent: {a.model_size} (enc {arch.enc_dim}, mlp {arch.mlp_dim}, latent "
+        f"{arch.latent_dim}, {arch.num_q} Qs), H={a.horizon}, MPPI {a.iterations} it x "
+        f"{a.num_samples} samples, batch {a.batch_size}, {sirl}",
+        buffer_line,
+        f"run dir {run_dir}: eval every {every(t.eval_every)}, checkpoint every "
+        f"{every(t.checkpoint_every)} (buffer {'saved' if t.save_buffer else 'not saved'}), "
+        f"log every {t.log_every:,}",
+        f"device: {jax.default_backend()} ({jax.devices()[0].device_kind}, "
+        f"{jax.device_count()} device(s))",
+    ])  # fmt: skip
+
+
+# ---------------------------------------------------------------- the run loop
+
+
+@dataclasses.dataclass
+class _Run:
+    """What the loop needs besides the state; `saved` is the newest checkpointed env step."""
+
+    config: Config
+    args: TrainArgs
+    train: Any
+    ckpt: Checkpointer
+    log: runlog.RunLog
+    bar: prog.Progress
+    saved: int | None = None
+
+
+def _eval_key(seed: int, env_steps: int):
+    import jax
+
+    base = jax.random.fold_in(jax.random.PRNGKey(seed), _EVAL_STREAM)
+    return jax.random.fold_in(base, env_steps)
+
+
+def _evaluate(run: _Run, eval_fn, state, env_steps: int) -> dict[str, float]:
+    import jax
+
+    metrics = _scalars(jax.device_get(eval_fn(state, _eval_key(run.config.train.seed, env_steps))))
+    run.log.log("eval", env_steps, metrics)
+    run.bar.write(f"eval @ {env_steps:,}: " + ", ".join(f"{k} {v:.4g}" for k, v in metrics.items()))
+    return metrics
+
+
+def _nonfinite_failure(run: _Run, state, before: int, bad: list[str]) -> TrainingFailure:
+    reached = before + run.train.steps_per_call
+    where = f"non-finite values in the chunk ending at env step {reached:,}: {', '.join(bad)}"
+    if run.args.guard:
+        good = save_checkpoint(run.ckpt, state, run.config.train.save_buffer)
+        return TrainingFailure(f"{where}; the last good state (env step {good:,}) is saved in "
+                               f"{run.ckpt.directory} with the earlier checkpoints")  # fmt: skip
+    return TrainingFailure(f"{where}; the state was not saved (--no-guard); the last checkpoint "
+                           f"is env step {run.saved}")  # fmt: skip
+
+
+def _oom_failure(run: _Run, error: Exception, env_steps: int) -> TrainingFailure:
+    t, a = run.config.train, run.config.agent
+    first = str(error).strip().splitlines()[0][:200]
+    return TrainingFailure(
+        f"out of device memory at env step {env_steps:,} ({first}); reduce --buffer-size "
+        f"(now {t.buffer_size:,}), --num-envs ({t.num_envs}), --chunk-steps ({t.chunk_steps}), "
+        f"--agent.batch-size ({a.batch_size}), --agent.num-samples ({a.num_samples}) or "
+        f"--model-size ({a.model_size}), or pass --no-guard; last checkpoint: env step {run.saved}"
+    )
+
+
+def _loop(run: _Run, state) -> int:
+    """Runs chunks until train.steps, a Ctrl-C or a failure; checkpoints the final state."""
+    import jax
+
+    t = run.config.train
+    step_fn = guarded(run.train.step) if run.args.guard else run.train.step
+    step_fn = jax.jit(step_fn, donate_argnums=0)
+    eval_fn = jax.jit(run.train.evaluate)
+    env_steps, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
+    mean, timing = prog.MetricMean(), []  # timing: (time, env_steps) of chunks with updates
+    on_cpu = jax.default_backend() == "cpu"
+    with _StopOnSigint() as stop:
+        while env_steps < t.steps and not stop.requested:
+            before, updates_before = env_steps, updates
+            try:
+                state, metrics = step_fn(state)
+                metrics, env_steps, updates = jax.device_get(
+                    (metrics, state.env_steps, state.updates)
+                )
+            except jax.errors.JaxRuntimeError as e:
+                if "RESOURCE_EXHAUSTED" in str(e):
+                    raise _oom_failure(run, e, before) from e
+                raise
+            metrics, env_steps, updates = _scalars(metrics), int(env_steps), int(updates)
+            bad = prog.failures(metrics)
+            if bad:
+                run.log.log("metrics", before + run.train.steps_per_call, metrics)
+                raise _nonfinite_failure(run, state, before, bad)
+            run.bar.update(env_steps, updates, metrics)
+            mean.add(metrics)
+            if prog.crossed(before, env_steps, t.log_every) or env_steps >= t.steps:
+                run.log.log("metrics", env_steps, {"updates": updates, **mean.pop()})
+            if prog.crossed(before, env_steps, t.eval_every):
+                _evaluate(run, eval_fn, state, env_steps)
+            if prog.crossed(before, env_steps, t.checkpoint_every):
+                run.saved = save_checkpoint(run.ckpt, state, t.save_buffer)
+            if on_cpu and updates > updates_before and len(timing) < 4:
+                timing.append((time.perf_counter(), env_steps))
+                if len(timing) == 4:  # rate over steady chunks: skips compile and pretraining
+                    (t0, s0), (t1, s1) = timing[1], timing[3]
+                    eta = (t.steps - env_steps) * (t1 - t0) / max(s1 - s0, 1)
+                    if eta > _CPU_WARN_SECONDS:
+                        run.bar.write(f"CPU only: ~{prog.format_duration(eta)} more for "
+                                      f"{t.steps:,} steps; use --preset smoke or a GPU")
+    if stop.requested and env_steps < t.steps and mean.pending():
+        run.log.log("metrics", env_steps, {"updates": updates, **mean.pop()})
+    run.saved = save_checkpoint(run.ckpt, state, t.save_buffer)
+    run.bar.close()
+    how = "stopped by Ctrl-C" if env_steps < t.steps else "done"
+    print(f"{how} at env step {env_steps:,}; checkpoint saved in {run.ckpt.directory}"
+          + (f"; continue with: python -m sirl_jax train --resume {run.log.run_dir}"
+             if env_steps < t.steps else ""))  # fmt: skip
+    return EXIT_OK
+
+
+def _check_resume_step(ckpt: Checkpointer, step: int | None) -> None:
+    later = [s for s in ckpt.steps() if step is not None and s > step]
+    if later:
+        raise UsageError(
+            f"--resume-step {step}: later checkpoints {later} exist and would mix with the new "
+            "ones; move them out of checkpoints/ first (nothing was changed)"
+        )
+
+
+def train(args: TrainArgs) -> int:
+    """The `train` command: validate, prepare the run dir, init or restore, run the loop."""
+    import jax
+
+    from sirl_jax.buffer_memory import check_buffer_fits
+    from sirl_jax.compile_cache import enable_compilation_cache
+
+    config, resuming = args.config, args.resume is not None
+    if resuming:
+        run_dir = Path(args.resume)
+    else:
+        run_dir = Path(args.run_dir or runlog.default_run_dir(config.train.task, config.train.seed))
+        runlog.check_new_run_dir(run_dir)
+    spec, env = load_task(config.train.task)
+    try:
+        config.validate_for_task(spec.episode_length, spec.success_bar)
+    except ValueError as e:
+        raise UsageError(str(e)) from e
+    if args.wandb:
+        try:
+            import wandb
+        except ImportError as e:
+            raise UsageError("--wandb needs the wandb package: pip install wandb") from e
+    enable_compilation_cache()
+    from sirl_jax.train import make_train
+
+    trainer = make_train(config, env)
+    key = jax.random.PRNGKey(config.train.seed)
+    nbytes = _tree_nbytes(jax.eval_shape(trainer.init, key).buffer)
+    buffer = getattr(trainer, "buffer", None)
+    line = buffer.describe() if hasattr(buffer, "describe") else f"buffer: {nbytes / 1e9:.3f} GB"
+    print(summary(config, spec, line, run_dir))
+    check_buffer_fits(nbytes)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    runlog.write_json(run_dir / "config.json", runlog.config_to_dict(config))
+    runlog.record_versions(run_dir)
+    wandb_run = None
+    if args.wandb:
+        wandb_run = wandb.init(project=args.wandb_project, name=run_dir.name, dir=str(run_dir),
+                               config=runlog.config_to_dict(config), id=run_dir.name,
+                               resume="allow")  # fmt: skip
+    ckpt = Checkpointer(run_dir / "checkpoints", max_to_keep=args.keep)
+    log = runlog.RunLog(run_dir, tensorboard=args.tensorboard, wandb_run=wandb_run)
+    try:
+        saved = None
+        if resuming:
+            _check_resume_step(ckpt, args.resume_step)
+            state, saved = restore_checkpoint(ckpt, trainer, key, args.resume_step)
+            log.drop_after(saved)
+            print(f"resumed from env step {saved:,}")
+        else:
+            state = jax.jit(trainer.init)(key)
+        initial = int(jax.device_get(state.env_steps))
+        bar = prog.Progress(config.train.steps, initial, enabled=args.progress)
+        return _loop(_Run(config, args, trainer, ckpt, log, bar, saved), state)
+    finally:
+        log.close()
+        ckpt.close()
+
+
+def evaluate(args: EvalArgs) -> int:
+    """The `eval` command: restore a run's checkpoint, evaluate, print one JSON line."""
+    import jax
+
+    run_dir = Path(args.run)
+    config = runlog.load_config(run_dir, Config)
+    if args.episodes is not None:
+        train_cfg = dataclasses.replace(config.train, eval_episodes=args.episodes)
+        config = dataclasses.replace(config, train=train_cfg)
+    if not (run_dir / "checkpoints").is_dir():
+        raise UsageError(f"{run_dir} has no checkpoints/")
+    spec, env = load_task(config.train.task)
+    from sirl_jax.train import make_train
+
+    trainer = make_train(config, env)
+    ckpt = Checkpointer(run_dir / "checkpoints")
+    try:
+        state, step = restore_checkpoint(ckpt, trainer, jax.random.PRNGKey(config.train.seed),
+                                         args.step)  # fmt: skip
+    finally:
+        ckpt.close()
+    out = jax.device_get(jax.jit(trainer.evaluate)(state, _eval_key(config.train.seed, step)))
+    print(json.dumps({"task": spec.id, "env_steps": step, **_scalars(out)}))
+    return EXIT_OK
+
+
+# ---------------------------------------------------------------- commands
+
+
+def tasks() -> int:
+    """The `tasks` command: one line per registered task."""
+    from sirl_jax.envs import TASKS
+
+    aliases: dict[str, list[str]] = {}
+    for alias, target in TASKS.aliases().items():
+        aliases.setdefault(target, []).append(alias)
+    print(f"{'task':<26} {'aliases':<18} {'T':>5} {'success':>8}  description")
+    for name in sorted(TASKS):
+        spec = TASKS[name]
+        bar = "-" if spec.success_bar is None else f"{spec.success_bar:g}"
+        alias = ",".join(sorted(aliases.get(name, []))) or "-"
+        print(f"{name:<26} {alias:<18} {spec.episode_length:>5} {bar:>8}  {spec.description}")
+    print("also: --task dmc:<EnvName> for a MuJoCo Playground env (needs the playground extra)")
+    return EXIT_OK
+
+
+USAGE = """usage: python -m sirl_jax {train,tasks,eval} [flags]
+
+  train  python -m sirl_jax train --task hurdle [--seed 1 --steps 1000000 --num-envs 4 ...]
+         --preset smoke: a CPU-sized run; --resume RUN_DIR: continue; --help: every flag
+  tasks  list the registered tasks and their aliases
+  eval   python -m sirl_jax eval --run RUN_DIR [--step N]: evaluate a checkpoint
+"""
+
+
+def _dispatch(argv: list[str]) -> int:
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(USAGE, end="")
+        return EXIT_OK if argv else EXIT_USAGE
+    command, rest = argv[0], argv[1:]
+    if command == "train":
+        return train(parse_train_args(rest))
+    if command == "tasks":
+        return tasks()
+    if command == "eval":
+        return evaluate(tyro.cli(EvalArgs, args=rest, prog="python -m sirl_jax eval"))
+    raise UsageError(f"unknown command {command!r}; valid commands: train, tasks, eval")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Runs the CLI in-process; returns the exit code (0, 1 failure, 2 bad input, 130 abort)."""
+    from sirl_jax.buffer_memory import BufferTooLargeError
+
+    try:
+        return _dispatch(list(sys.argv[1:] if argv is None else argv))
+    except SystemExit as e:  # tyro's own usage errors (2) and --help (0)
+        return e.code if isinstance(e.code, int) else EXIT_USAGE
+    except (UsageError, runlog.RunDirError, CheckpointError, BufferTooLargeError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except TrainingFailure as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_FAILURE
+    except KeyboardInterrupt:
+        print("aborted by a second Ctrl-C: nothing saved since the last checkpoint",
+              file=sys.stderr)  # fmt: skip
+        return EXIT_ABORTED
+
+
+__all__ = ["RESUME_MUTABLE", "EvalArgs", "TrainArgs", "TrainingFailure", "UsageError", "main",
+           "parse_train_args", "restore_checkpoint", "save_checkpoint"]  # fmt: skip

@@ -1,0 +1,228 @@
+"""The generic H1 task environment: one MJX model (robot + task scene) and a `Task` that scores it.
+
+`HumanoidEnv` implements the `Env` contract for every HumanoidBench locomotion task:
+
+- reset: keyframe 0, plus U(-0.01, 0.01) on every qpos entry (the root quaternion is left
+  un-normalised, as in HumanoidBench), qvel = 0, then the task's randomisation from the PRNG key;
+  only the kinematics are computed (HumanoidBench runs a full `mj_forward`, whose outputs no
+  observation or reward of the reset state uses).
+- step: ctrl = low + (a + 1)/2 (high - low), 10 `mjx.step` substeps in a `lax.scan`, then reward,
+  termination and metrics from the data the last `mjx.step` returned (kinematics of the forward
+  pass at the start of the last substep, qpos/qvel after it: HumanoidBench's convention).
+- observation: full qpos and qvel (robot and task objects, root x and y included) plus the
+  task's extras.
+
+The jitted programs can take the `mjx.Model` as an argument (`with_model`), so a test or a
+benchmark can reuse one compiled program for every model of the same shapes.
+
+Shape letters: O observation size, A action size (nu), nq/nv the model's sizes.
+"""
+
+from __future__ import annotations
+
+import abc
+import copy
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import mjx
+
+from sirl_jax.envs import h1
+from sirl_jax.envs.base import Env, EnvState, init_state
+
+FRAME_SKIP = 10
+"""Physics substeps per control step (dt 0.002 s -> 50 Hz control), as in HumanoidBench."""
+RESET_NOISE = 0.01
+
+# Contact bits. The robot module gives robot colliders contype=2 conaffinity=1 and the floor
+# contype=1 conaffinity=2 (robot-floor only; no self-collision). A task that wants a scene geom to
+# touch only some robot parts adds one of these bits to the conaffinity of those parts and gives
+# the scene geom that bit as contype (and conaffinity 0, so scene geoms never touch each other).
+GROUP_BITS = {"feet": 1 << 2, "legs": 1 << 3, "body": 1 << 4, "arms": 1 << 5, "hands": 1 << 6}
+ALL_GROUPS = ("feet", "legs", "body", "arms")
+"""The robot groups that collide in the "locomotion" contact profile."""
+BIT_OBJECT = 1 << 7
+"""Free task objects that touch each other (balance board and pivot) share this bit."""
+
+
+class Task(abc.ABC):
+    """A HumanoidBench task: scene, randomisation, reward, termination, observation extras.
+
+    `build` edits the robot's `MjSpec` before compilation; `bind` reads static ids from the
+    compiled model. The remaining methods are pure and run under jit/vmap.
+    """
+
+    name: str = ""
+    metric_names: tuple[str, ...] = ()
+    extra_obs_size: int = 0
+
+    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
+        """Adds the task scene to `spec` (default: none)."""
+        del spec, variant
+
+    def bind(self, model: mujoco.MjModel, robot: Any) -> None:
+        """Reads static ids and masks from the compiled model (default: none)."""
+        del model, robot
+
+    def init(self, key: jax.Array, qpos: jax.Array) -> tuple[jax.Array, Any]:
+        """Task randomisation of the noisy keyframe qpos [nq]; returns (qpos, task state)."""
+        del key
+        return qpos, ()
+
+    @abc.abstractmethod
+    def evaluate(
+        self, robot: Any, data: mjx.Data, task_state: Any
+    ) -> tuple[jax.Array, jax.Array, Any, dict[str, jax.Array]]:
+        """(reward [], terminated [] bool, new task state, metrics {name: []})."""
+
+    def extra_obs(self, robot: Any, data: mjx.Data, task_state: Any) -> jax.Array:
+        """[extra_obs_size] observation entries after qpos and qvel (default: none)."""
+        del robot, data, task_state
+        return jnp.zeros((0,), jnp.float32)
+
+
+def set_contact_bits(
+    spec: mujoco.MjSpec, groups: dict[str, tuple[str, ...]], names: tuple[str, ...]
+) -> int:
+    """Adds the bit of each robot group in `names` to its geoms' conaffinity.
+
+    Returns the OR of those bits: the contype a scene geom needs to touch exactly those groups.
+    """
+    bits = 0
+    for name in names:
+        if name not in GROUP_BITS:
+            raise ValueError(f"unknown robot geom group {name!r}; allowed: {sorted(GROUP_BITS)}")
+        for geom_name in groups.get(name, ()):
+            geom = spec.geom(geom_name)
+            if geom is None:
+                raise ValueError(f"robot geom {geom_name!r} of group {name!r} not in the spec")
+            geom.conaffinity = int(geom.conaffinity) | GROUP_BITS[name]
+        bits |= GROUP_BITS[name]
+    return bits
+
+
+def set_max_geom_pairs(spec: mujoco.MjSpec, k: int) -> None:
+    """MJX broad phase: per collision-function group keep only the k candidate pairs whose
+    bounding spheres are closest (plane groups are never pruned). Scenes with many static geoms
+    (maze blocks, poles, stairs) use it so the per-step contact work stays that of a few pairs."""
+    if k < 1:
+        raise ValueError(f"max_geom_pairs must be >= 1, got {k}")
+    spec.add_numeric(name="max_geom_pairs", data=[float(k)])
+
+
+def add_static_geom(
+    spec: mujoco.MjSpec,
+    contype: int,
+    gtype: mujoco.mjtGeom = mujoco.mjtGeom.mjGEOM_BOX,
+    **kwargs,
+) -> mujoco.MjsGeom:
+    """A world geom that touches the robot parts whose bits are in `contype` and nothing else."""
+    geom = spec.worldbody.add_geom(type=gtype, contype=contype, conaffinity=0, **kwargs)
+    return geom
+
+
+def geom_mask(model: mujoco.MjModel, ids) -> np.ndarray:
+    """[ngeom] bool mask with True at `ids`."""
+    mask = np.zeros(model.ngeom, bool)
+    mask[np.asarray(list(ids), int)] = True
+    return mask
+
+
+class HumanoidEnv(Env):
+    """One HumanoidBench task on the H1 (`variant` "h1hand": 61 actuators, or "h1": 19)."""
+
+    def __init__(
+        self,
+        task: Task,
+        variant: str = "h1hand",
+        episode_length: int = 1000,
+        success_bar: float | None = None,
+    ):
+        if variant not in ("h1hand", "h1"):
+            raise ValueError(f"unknown robot variant {variant!r}; allowed: 'h1hand', 'h1'")
+        if episode_length < 1:
+            raise ValueError(f"episode_length must be >= 1, got {episode_length}")
+        self.task = task
+        self.variant = variant
+        self._episode_length = int(episode_length)
+        self._success_bar = success_bar
+        spec = h1.robot_spec(variant=variant, contacts="locomotion")
+        task.build(spec, variant)
+        self.mj_model = spec.compile()
+        self.robot = h1.Robot(self.mj_model)
+        task.bind(self.mj_model, self.robot)
+        self.mx = mjx.put_model(self.mj_model)
+        self._qpos0 = jnp.asarray(self.mj_model.key_qpos[0], jnp.float32)
+        nq, nv = self.mj_model.nq, self.mj_model.nv
+        self._obs_size = nq + nv + task.extra_obs_size
+
+    # -- Env contract -------------------------------------------------------------------------
+    @property
+    def observation_size(self) -> int:
+        return self._obs_size
+
+    @property
+    def action_size(self) -> int:
+        return int(self.robot.nu)
+
+    @property
+    def episode_length(self) -> int:
+        return self._episode_length
+
+    @property
+    def success_bar(self) -> float | None:
+        return self._success_bar
+
+    def metric_names(self) -> tuple[str, ...]:
+        return tuple(self.task.metric_names)
+
+    def with_model(self, mx: mjx.Model) -> HumanoidEnv:
+        """A shallow copy that steps `mx` (e.g. a traced jit argument) instead of its own model."""
+        env = copy.copy(self)
+        env.mx = mx
+        return env
+
+    def reset(self, key: jax.Array) -> EnvState:
+        """Keyframe + U(+-0.01) on all qpos + task randomisation; qvel = 0."""
+        key_noise, key_task, key_next = jax.random.split(key, 3)
+        noise = jax.random.uniform(
+            key_noise, self._qpos0.shape, minval=-RESET_NOISE, maxval=RESET_NOISE
+        )
+        qpos, task_state = self.task.init(key_task, self._qpos0 + noise)
+        data = mjx.make_data(self.mx)
+        data = data.replace(qpos=qpos, qvel=jnp.zeros_like(data.qvel))
+        # Positions only (xpos, xmat, site_xpos for the observation extras). `step` starts with a
+        # full forward pass anyway, and leaving collision and the solver out of reset halves the
+        # compiled program (VecEnv's auto-reset inlines a reset in every step).
+        data = mjx.kinematics(self.mx, data)
+        obs = self._observe(data, task_state)
+        metrics = {name: jnp.zeros((), jnp.float32) for name in self.task.metric_names}
+        return init_state(data, obs, key_next, task=task_state, metrics=metrics)
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        """One control step: 10 physics substeps, then reward/termination of the returned data."""
+        ctrl = self.robot.action_to_ctrl(action)
+        data = state.physics.replace(ctrl=ctrl)
+
+        def substep(d: mjx.Data, _) -> tuple[mjx.Data, None]:
+            return mjx.step(self.mx, d), None
+
+        data, _ = jax.lax.scan(substep, data, None, length=FRAME_SKIP)
+        reward, terminated, task_state, metrics = self.task.evaluate(self.robot, data, state.task)
+        obs = self._observe(data, task_state)
+        metrics = {k: jnp.asarray(v, jnp.float32) for k, v in metrics.items()}
+        return state.replace(
+            physics=data,
+            task=task_state,
+            obs=obs,
+            reward=jnp.asarray(reward, jnp.float32),
+            terminated=jnp.asarray(terminated, bool),
+            metrics=metrics,
+        )
+
+    def _observe(self, data: mjx.Data, task_state: Any) -> jax.Array:
+        extra = self.task.extra_obs(self.robot, data, task_state)
+        return jnp.concatenate([data.qpos, data.qvel, extra]).astype(jnp.float32)

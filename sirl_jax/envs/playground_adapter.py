@@ -1,0 +1,143 @@
+"""Train on any MuJoCo Playground `MjxEnv` (`--task dmc:CartpoleSwingup`).
+
+The PyPI package `playground` (module `mujoco_playground`) is an optional extra
+(`pip install 'sirl_jax[playground]'`); it is imported only when such a task is requested.
+
+Names: `dmc:<Name>` for the dm_control suite ports, `playground:<Name>` for any env in the
+Playground registry (locomotion, manipulation, dm_control). A dict observation uses its
+`state` entry. Playground's `done` (a fall, or NaN physics in the dm_control ports) becomes
+`terminated`; the time limit is `episode_length / action_repeat` from the env's config and is
+enforced by `VecEnv`, not by Playground's wrappers. Physics runs with `impl="jax"` unless
+`impl` is given (Playground's default, warp, is slow or unavailable on CPU).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from sirl_jax.envs.base import Env, EnvState, init_state
+from sirl_jax.envs.registry import TASKS, TaskSpec, register
+
+PREFIXES = ("dmc:", "playground:")
+
+
+def is_playground_task(name: str) -> bool:
+    """True for names this adapter handles (`dmc:...`, `playground:...`)."""
+    return name.startswith(PREFIXES)
+
+
+def _import_playground():
+    try:
+        from mujoco_playground import registry
+    except ImportError as err:
+        raise ImportError(
+            "MuJoCo Playground tasks need the optional extra: pip install 'sirl_jax[playground]' "
+            f"(the `playground` package); importing mujoco_playground failed with: {err}"
+        ) from err
+    return registry
+
+
+def _split_name(name: str) -> tuple[str, str]:
+    for prefix in PREFIXES:
+        if name.startswith(prefix):
+            return prefix[:-1], name[len(prefix) :]
+    raise ValueError(f"task {name!r} is not a Playground task; names start with {PREFIXES}")
+
+
+class PlaygroundEnv(Env):
+    """Adapts one Playground `MjxEnv` to the `Env` contract.
+
+    `physics` holds Playground's whole `State` (data, info, metrics), so its own per-env
+    bookkeeping (command targets, RNG) carries through unchanged.
+    """
+
+    def __init__(self, name: str, impl: str | None = "jax", action_repeat: int = 1):
+        suite, env_name = _split_name(name)
+        registry = _import_playground()
+        valid = registry.dm_control_suite.ALL_ENVS if suite == "dmc" else registry.ALL_ENVS
+        if env_name not in valid:
+            raise ValueError(f"unknown {suite} env {env_name!r}; valid: {', '.join(valid)}")
+        if action_repeat < 1:
+            raise ValueError(f"action_repeat={action_repeat!r} is invalid; allowed: >= 1")
+        overrides = {"impl": impl} if impl is not None else None
+        self.env = registry.load(env_name, config_overrides=overrides)
+        self.name = name
+        self.action_repeat = action_repeat
+        config = self.env._config
+        self._episode_length = int(config.episode_length) // action_repeat
+        probe = jax.eval_shape(self.env.reset, jax.random.PRNGKey(0))
+        self._obs_size = int(self._flat_obs(probe.obs).shape[-1])
+        self._metric_names = tuple(sorted(probe.metrics))
+
+    @staticmethod
+    def _flat_obs(obs: Any) -> jax.Array:
+        if isinstance(obs, Mapping):
+            if "state" not in obs:
+                raise ValueError(f"dict observation without a 'state' entry: keys {list(obs)}")
+            obs = obs["state"]
+        return obs
+
+    @property
+    def observation_size(self) -> int:
+        return self._obs_size
+
+    @property
+    def action_size(self) -> int:
+        return int(self.env.action_size)
+
+    @property
+    def episode_length(self) -> int:
+        return self._episode_length
+
+    def metric_names(self) -> tuple[str, ...]:
+        return self._metric_names
+
+    def _metrics(self, pg_state: Any) -> dict[str, jax.Array]:
+        return {k: jnp.asarray(pg_state.metrics[k], jnp.float32) for k in self._metric_names}
+
+    def reset(self, key: jax.Array) -> EnvState:
+        key_env, key_next = jax.random.split(key)
+        pg_state = self.env.reset(key_env)
+        obs = self._flat_obs(pg_state.obs)
+        return init_state(pg_state, obs, key_next, metrics=self._metrics(pg_state))
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        def repeat(carry, _):
+            pg_state, total = carry
+            nxt = self.env.step(pg_state, action)
+            # Once done, later repeats add no reward (the episode has ended).
+            alive = 1.0 - jnp.asarray(pg_state.done, jnp.float32)
+            return (nxt, total + alive * nxt.reward), None
+
+        (pg_state, reward), _ = jax.lax.scan(
+            repeat, (state.physics, jnp.zeros((), jnp.float32)), None, length=self.action_repeat
+        )
+        return state.replace(
+            physics=pg_state,
+            obs=jnp.asarray(self._flat_obs(pg_state.obs), jnp.float32),
+            reward=jnp.asarray(reward, jnp.float32),
+            terminated=jnp.asarray(pg_state.done, bool),
+            metrics=self._metrics(pg_state),
+        )
+
+
+def register_playground_task(name: str, action_repeat: int = 1) -> TaskSpec:
+    """Registers `name` (e.g. `dmc:CartpoleSwingup`) if needed and returns its spec.
+
+    Building the spec loads the env once to read its episode length.
+    """
+    if name in TASKS:
+        return TASKS[name]
+    env = PlaygroundEnv(name, action_repeat=action_repeat)
+    return register(
+        TaskSpec(
+            id=name,
+            factory=lambda **kw: PlaygroundEnv(name, **{"action_repeat": action_repeat, **kw}),
+            episode_length=env.episode_length,
+            description=f"MuJoCo Playground env {name}",
+        )
+    )

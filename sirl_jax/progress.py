@@ -1,0 +1,147 @@
+"""The progress bar and throughput/ETA arithmetic of the shell (host side, chunk boundaries)."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Mapping
+
+from tqdm import tqdm
+
+
+def format_duration(seconds: float) -> str:
+    """`3.2 days`, `5.1 h`, `12 min`, `40 s`."""
+    if not math.isfinite(seconds):
+        return "?"
+    if seconds >= 2 * 86400:
+        return f"{seconds / 86400:.1f} days"
+    if seconds >= 2 * 3600:
+        return f"{seconds / 3600:.1f} h"
+    if seconds >= 120:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds:.0f} s"
+
+
+class Rate:
+    """Env steps/s and updates/s over the chunks since the first `skip` (compile) ones."""
+
+    def __init__(self, skip: int = 1):
+        self.skip = skip
+        self.chunks = 0
+        self._t0: float | None = None
+        self._start: tuple[int, int] = (0, 0)
+        self.env_rate = math.nan
+        self.update_rate = math.nan
+
+    def update(self, env_steps: int, updates: int) -> None:
+        now = time.perf_counter()
+        self.chunks += 1
+        if self.chunks == self.skip or (self.skip == 0 and self._t0 is None):
+            self._t0, self._start = now, (env_steps, updates)
+            return
+        if self._t0 is not None and now > self._t0:
+            dt = now - self._t0
+            self.env_rate = (env_steps - self._start[0]) / dt
+            self.update_rate = (updates - self._start[1]) / dt
+
+    def eta(self, remaining_steps: int) -> float:
+        """Seconds for `remaining_steps` env steps at the measured rate (inf if unknown)."""
+        if not self.env_rate > 0:
+            return math.inf
+        return remaining_steps / self.env_rate
+
+
+class Progress:
+    """A tqdm bar over env steps with steps/s, updates/s and the last episode return."""
+
+    def __init__(self, total: int, initial: int = 0, enabled: bool = True):
+        self.rate = Rate(skip=1)
+        self._bar = tqdm(
+            total=total,
+            initial=initial,
+            unit="step",
+            unit_scale=True,
+            dynamic_ncols=True,
+            disable=not enabled,
+            file=sys.stderr,
+            smoothing=0.1,
+        )
+        self._last_return = math.nan
+
+    def update(self, env_steps: int, updates: int, metrics: Mapping[str, float]) -> None:
+        self.rate.update(env_steps, updates)
+        ret = metrics.get("episode/return", math.nan)
+        if math.isfinite(ret):
+            self._last_return = ret
+        self._bar.set_postfix(
+            {
+                "sps": f"{self.rate.env_rate:.0f}",
+                "ups": f"{self.rate.update_rate:.1f}",
+                "return": f"{self._last_return:.1f}",
+            },
+            refresh=False,
+        )
+        self._bar.update(env_steps - self._bar.n)
+
+    def write(self, message: str) -> None:
+        """Prints a line without breaking the bar."""
+        self._bar.write(message, file=sys.stderr)
+
+    def close(self) -> None:
+        self._bar.close()
+
+
+def crossed(before: int, after: int, every: int) -> bool:
+    """Whether a multiple of `every` lies in (before, after]; never when every <= 0."""
+    return every > 0 and after // every > before // every
+
+
+def is_failure_metric(name: str) -> bool:
+    """`nonfinite*` counters: non-zero means a NaN/inf loss or observation in the chunk.
+
+    Losses themselves are NaN by design in chunks without updates (the seed phase), and
+    episode returns in chunks where no episode ended, so only the counters are checked.
+    """
+    return name.startswith("nonfinite")
+
+
+def failures(metrics: Mapping[str, float]) -> list[str]:
+    """`name=value` for each non-zero (or non-finite) `nonfinite*` counter."""
+    return [
+        f"{name}={value:g}"
+        for name, value in metrics.items()
+        if is_failure_metric(name) and (value != 0 or not math.isfinite(value))
+    ]
+
+
+class MetricMean:
+    """Averages chunk metrics between log lines (NaNs skipped; `nonfinite*` counters summed)."""
+
+    def __init__(self) -> None:
+        self._sum: dict[str, float] = {}
+        self._count: dict[str, int] = {}
+
+    def add(self, metrics: Mapping[str, float]) -> None:
+        for name, value in metrics.items():
+            self._sum.setdefault(name, 0.0)
+            self._count.setdefault(name, 0)
+            if math.isfinite(value) or name.startswith("nonfinite"):
+                self._sum[name] += value
+                self._count[name] += 1
+
+    def pending(self) -> bool:
+        """Whether chunks were added since the last `pop`."""
+        return bool(self._sum)
+
+    def pop(self) -> dict[str, float]:
+        """The aggregate since the last `pop` (NaN where every chunk was NaN); then resets."""
+        out = {}
+        for name, total in self._sum.items():
+            n = self._count[name]
+            if name.startswith("nonfinite"):
+                out[name] = total
+            else:
+                out[name] = total / n if n else math.nan
+        self._sum, self._count = {}, {}
+        return out

@@ -1,0 +1,262 @@
+"""The run directory and its logs: config.json, versions.json, metrics JSONL/CSV, TensorBoard.
+
+Layout of a run directory (see docs/cli.md):
+
+    config.json        the resolved Config (rewritten on resume if an allowed field changed)
+    versions.json      python/jax/... versions, git commit, device; one entry per (re)start
+    metrics.jsonl/csv  one row per logged train chunk: env_steps, updates, wall time, metrics
+    eval.jsonl/csv     one row per evaluation
+    tb/                TensorBoard event files (tensorboardX), `train/*` and `eval/*` scalars
+    checkpoints/       orbax checkpoints, one directory per env step (see checkpoint.py)
+
+Everything here runs on the host at chunk boundaries; values are plain Python floats.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import datetime
+import importlib.metadata
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import time
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+_PACKAGES = (
+    "jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "optax", "orbax-checkpoint", "chex",
+    "tyro", "numpy", "tensorboardX", "sirl_jax",
+)  # fmt: skip
+STREAMS = ("metrics", "eval")
+
+
+def write_json(path: Path, obj: Any) -> None:
+    """Writes JSON atomically (temp file + rename), so a crash never leaves half a file."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(obj, indent=2, sort_keys=True) + "\n")
+    os.replace(tmp, path)
+
+
+class RunDirError(ValueError):
+    """A run directory or its config.json is missing, taken, or unreadable."""
+
+
+def config_to_dict(config: Any) -> dict:
+    return dataclasses.asdict(config)
+
+
+def config_from_dict(cls: type, data: dict, where: str = "config") -> Any:
+    """Rebuilds a (nested, frozen) config dataclass from `config_to_dict` output."""
+    hints = typing.get_type_hints(cls)
+    unknown = sorted(set(data) - {f.name for f in dataclasses.fields(cls)})
+    if unknown:
+        raise RunDirError(f"{where}: unknown fields {unknown} (written by another version?)")
+    kwargs = {}
+    for name, value in data.items():
+        hint = hints[name]
+        if dataclasses.is_dataclass(hint) and isinstance(value, dict):
+            value = config_from_dict(hint, value, f"{where}.{name}")
+        elif isinstance(value, list):
+            value = tuple(value)
+        kwargs[name] = value
+    return cls(**kwargs)
+
+
+def flatten_config(config: Any) -> dict[str, Any]:
+    """{'train.steps': 1000, 'agent.sirl.beta': 1.0, ...} of a nested config dataclass."""
+    out = {}
+
+    def walk(prefix: str, obj: Any) -> None:
+        for f in dataclasses.fields(obj):
+            value = getattr(obj, f.name)
+            if dataclasses.is_dataclass(value):
+                walk(f"{prefix}{f.name}.", value)
+            else:
+                out[prefix + f.name] = value
+
+    walk("", config)
+    return out
+
+
+def load_config(run_dir: Path, cls: type) -> Any:
+    """The config saved in `run_dir/config.json`; RunDirError if absent or invalid."""
+    path = run_dir / "config.json"
+    if not path.is_file():
+        raise RunDirError(f"{run_dir} is not a run directory (no config.json)")
+    try:
+        return config_from_dict(cls, json.loads(path.read_text()), str(path))
+    except (TypeError, ValueError) as e:
+        raise RunDirError(f"{path} is invalid: {e}") from e
+
+
+def default_run_dir(task: str, seed: int, root: str = "runs") -> Path:
+    """runs/<task>-s<seed>-<UTC time>, with path-unsafe characters of the task replaced."""
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in task)
+    stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%d-%H%M%S")
+    return Path(root) / f"{safe}-s{seed}-{stamp}"
+
+
+def check_new_run_dir(run_dir: Path) -> None:
+    """RunDirError if `run_dir` exists and is not empty (a new run never reuses one)."""
+    if run_dir.exists() and (not run_dir.is_dir() or any(run_dir.iterdir())):
+        raise RunDirError(
+            f"run directory {run_dir} already exists; continue it with --resume {run_dir} "
+            "or pick another --run-dir (nothing was changed)"
+        )
+
+
+def _git_commit() -> str | None:
+    root = Path(__file__).resolve().parent.parent
+    try:
+        out = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"],
+            capture_output=True, text=True, timeout=5, check=True,
+        ).stdout.strip()  # fmt: skip
+        dirty = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True, text=True, timeout=5, check=True,
+        ).stdout.strip()  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out + ("-dirty" if dirty else "")
+
+
+def versions() -> dict:
+    """Python and package versions, the git commit of the source tree, and the devices."""
+    import jax
+
+    out: dict[str, Any] = {"python": platform.python_version(), "platform": platform.platform()}
+    for name in _PACKAGES:
+        try:
+            out[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            out[name] = None
+    out["git_commit"] = _git_commit()
+    devices = jax.devices()
+    out["backend"] = jax.default_backend()
+    out["devices"] = [f"{d.platform}:{d.id} {getattr(d, 'device_kind', '')}" for d in devices]
+    out["argv"] = sys.argv
+    out["started"] = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+    return out
+
+
+def record_versions(run_dir: Path) -> None:
+    """Appends this process's versions to versions.json (a list: one entry per start)."""
+    path = run_dir / "versions.json"
+    entries = json.loads(path.read_text()) if path.exists() else []
+    write_json(path, [*entries, versions()])
+
+
+class _Csv:
+    """A CSV file whose header grows when a new key appears (the file is then rewritten)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.header: list[str] = []
+        if path.exists() and path.stat().st_size:
+            with open(path, newline="") as f:
+                self.header = next(csv.reader(f), [])
+
+    def _rows(self) -> list[dict]:
+        if not self.path.exists():
+            return []
+        with open(self.path, newline="") as f:
+            return list(csv.DictReader(f))
+
+    def _rewrite(self, rows: list[dict]) -> None:
+        tmp = self.path.with_name(self.path.name + ".tmp")
+        with open(tmp, "w", newline="") as f:
+            writer = csv.DictWriter(f, self.header, restval="")
+            writer.writeheader()
+            writer.writerows(rows)
+        os.replace(tmp, self.path)
+
+    def append(self, row: Mapping[str, Any]) -> None:
+        new = [k for k in row if k not in self.header]
+        if new or not self.path.exists():
+            self.header += new
+            self._rewrite([*self._rows(), row])
+            return
+        with open(self.path, "a", newline="") as f:
+            csv.DictWriter(f, self.header, restval="").writerow(row)
+
+    def drop_after(self, step: int) -> None:
+        rows = [r for r in self._rows() if float(r.get("env_steps") or 0) <= step]
+        if self.header:
+            self._rewrite(rows)
+
+
+def _drop_jsonl_after(path: Path, step: int) -> None:
+    if not path.exists():
+        return
+    lines = [ln for ln in path.read_text().splitlines() if ln.strip()]
+    keep = [ln for ln in lines if json.loads(ln).get("env_steps", 0) <= step]
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text("".join(ln + "\n" for ln in keep))
+    os.replace(tmp, path)
+
+
+def read_jsonl(path: str | os.PathLike) -> list[dict]:
+    """The rows of a metrics/eval JSONL file (NaN is written as the bare token NaN)."""
+    return [json.loads(ln) for ln in Path(path).read_text().splitlines() if ln.strip()]
+
+
+class RunLog:
+    """Writes metric rows to JSONL + CSV + TensorBoard (+ wandb when given a module).
+
+    Args:
+      run_dir: an existing run directory.
+      tensorboard: write tb/ event files.
+      wandb_run: an initialised `wandb` run, or None.
+    """
+
+    def __init__(self, run_dir: Path, tensorboard: bool = True, wandb_run: Any = None):
+        self.run_dir = run_dir
+        self._csv = {s: _Csv(run_dir / f"{s}.csv") for s in STREAMS}
+        self._start = time.time()
+        self._tb = None
+        if tensorboard:
+            from tensorboardX import SummaryWriter
+
+            self._tb = SummaryWriter(str(run_dir / "tb"))
+        self._wandb = wandb_run
+
+    def drop_after(self, step: int) -> None:
+        """Forgets rows logged past `step` (a resumed run re-logs them from its checkpoint)."""
+        for s in STREAMS:
+            _drop_jsonl_after(self.run_dir / f"{s}.jsonl", step)
+            self._csv[s].drop_after(step)
+
+    def log(self, stream: str, env_steps: int, metrics: Mapping[str, float]) -> dict:
+        """Appends one row to `stream` ('metrics' or 'eval'); returns the row written."""
+        if stream not in STREAMS:
+            raise ValueError(f"stream must be one of {STREAMS}, got {stream!r}")
+        row = {"env_steps": int(env_steps), "wall_time": round(time.time() - self._start, 3)}
+        row.update({k: float(v) for k, v in metrics.items() if k != "env_steps"})
+        with open(self.run_dir / f"{stream}.jsonl", "a") as f:
+            f.write(json.dumps(row) + "\n")
+        self._csv[stream].append(row)
+        prefix = "train" if stream == "metrics" else "eval"
+        scalars = {k if "/" in k else f"{prefix}/{k}": v for k, v in row.items()}
+        scalars.pop(f"{prefix}/env_steps")
+        if self._tb is not None:
+            for k, v in scalars.items():
+                if math.isfinite(v):
+                    self._tb.add_scalar(k, v, global_step=int(env_steps))
+            self._tb.flush()
+        if self._wandb is not None:
+            self._wandb.log(scalars, step=int(env_steps))
+        return row
+
+    def close(self) -> None:
+        if self._tb is not None:
+            self._tb.close()
+        if self._wandb is not None:
+            self._wandb.finish()
