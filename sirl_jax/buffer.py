@@ -22,8 +22,9 @@ A window never crosses an episode boundary and never touches a running episode.
 
 R (`discount` = 1: undiscounted sum of the episode's rewards; else sum of discount^k r_k) is
 recorded when the episode ends. `r_max`: "in_buffer" is the masked max of R over live table
-entries (recomputed at every `add`, so it drops when the best episode is evicted); "all_time" is
-the running max over every recorded episode. Both are -inf before the first recorded episode.
+entries (recomputed whenever an episode is recorded or evicted, so it drops when the best one
+leaves); "all_time" is the running max over every recorded episode, evicted ones included.
+Both count recorded episodes only and are -inf before the first one.
 
 Shape letters: E envs, L entries per env ring, M table slots per env, B batch, H horizon,
 O observation size, A action size.
@@ -231,9 +232,12 @@ class Buffer:
         if self.rmax_mode == "all_time":
             r_max = r_max_all_time
         else:
-            rel = (jnp.arange(m)[None, :] - ep_head[:, None]) % m
-            live = rel < (ep_tail - ep_head)[:, None]
-            r_max = jnp.max(jnp.where(live, ep_return, -jnp.inf))
+            # The [E, M] masked max only changes when an episode enters or leaves the table.
+            r_max = jax.lax.cond(
+                jnp.any(evict | keep),
+                lambda: _live_max(ep_return, ep_head, ep_tail),
+                lambda: state.r_max,
+            )
 
         return state.replace(
             obs=write(state.obs, obs, next_obs),
@@ -320,6 +324,14 @@ class Buffer:
         for name, (x, shape) in expected.items():
             if jnp.shape(x) != shape:
                 raise ValueError(f"Buffer.add: {name} has shape {jnp.shape(x)}, expected {shape}")
+
+
+def _live_max(ep_return: jax.Array, ep_head: jax.Array, ep_tail: jax.Array) -> jax.Array:
+    """[] max of ep_return [E, M] over each env's live slots [head, tail) (mod M); -inf if none."""
+    m = ep_return.shape[1]
+    rel = (jnp.arange(m)[None, :] - ep_head[:, None]) % m
+    live = rel < (ep_tail - ep_head)[:, None]
+    return jnp.max(jnp.where(live, ep_return, -jnp.inf))
 
 
 def make_buffer(

@@ -12,19 +12,24 @@ Nothing here ever deletes a checkpoint except orbax's own `max_to_keep` rotation
 
 from __future__ import annotations
 
+import itertools
 import json
 import logging
 import os
+import re
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import jax
+import jax.numpy as jnp
+import numpy as np
 import orbax.checkpoint as ocp
 
 CHECKSUMS = "sirl_checksums.json"
 _META = "meta"
+_LAYOUT = "_leaf_names"
 
 # Orbax logs every save/restore at INFO through absl; the shell reports checkpoints itself.
 logging.getLogger("absl").setLevel(logging.WARNING)
@@ -51,15 +56,24 @@ def _scan(step_dir: Path) -> dict[str, list[int]]:
     return out
 
 
-def _abstract(tree: Any) -> Any:
-    """ShapeDtypeStructs (with a sharding, which orbax needs) for arrays or abstract arrays."""
-    device = jax.sharding.SingleDeviceSharding(jax.devices()[0])
+def _flatten(tree: Any) -> tuple[list[str], list[Any], Any]:
+    """Leaf names `0007_agent_params_encoder_0_kernel`, leaves, treedef of a pytree.
 
-    def leaf(x):
-        sharding = getattr(x, "sharding", None) or device
-        return jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=sharding)
+    Items are stored as flat {name: array} dicts: orbax cannot store zero-size arrays (MJX
+    data has some) and a flat dict restores into any pytree type, custom nodes included.
+    """
+    path_leaves, treedef = jax.tree_util.tree_flatten_with_path(tree)
+    names = [
+        f"{i:04d}_{re.sub(r'[^A-Za-z0-9_]+', '_', jax.tree_util.keystr(path)).strip('_')}"
+        for i, (path, _) in enumerate(path_leaves)
+    ]
+    return names, [leaf for _, leaf in path_leaves], treedef
 
-    return jax.tree.map(leaf, tree)
+
+def _abstract_leaf(x: Any) -> jax.ShapeDtypeStruct:
+    """A ShapeDtypeStruct with a sharding (orbax needs one) for an array or abstract array."""
+    sharding = getattr(x, "sharding", None) or jax.sharding.SingleDeviceSharding(jax.devices()[0])
+    return jax.ShapeDtypeStruct(np.shape(x), x.dtype, sharding=sharding)
 
 
 class Checkpointer:
@@ -104,10 +118,18 @@ class Checkpointer:
             raise ValueError(f"item name {_META!r} is reserved")
         if step in self.steps():
             raise CheckpointError(f"checkpoint {self.step_dir(step)} already exists")
-        args = {name: ocp.args.StandardSave({"tree": tree}) for name, tree in items.items()}
-        args[_META] = ocp.args.JsonSave(dict(meta or {}))
-        self._manager.save(step, args=ocp.args.Composite(**args), force=True)
-        self._manager.wait_until_finished()
+        args, layout = {}, {}
+        for item, tree in items.items():
+            names, leaves, _ = _flatten(tree)
+            layout[item] = names
+            flat = {n: leaf for n, leaf in zip(names, leaves, strict=True) if np.size(leaf)}
+            args[item] = ocp.args.StandardSave(flat)
+        args[_META] = ocp.args.JsonSave({**dict(meta or {}), _LAYOUT: layout})
+        try:
+            self._manager.save(step, args=ocp.args.Composite(**args), force=True)
+            self._manager.wait_until_finished()
+        except (ValueError, TypeError) as e:
+            raise CheckpointError(f"could not write checkpoint {self.step_dir(step)}: {e}") from e
         step_dir = self.step_dir(step)
         tmp = step_dir / (CHECKSUMS + ".tmp")
         tmp.write_text(json.dumps(_scan(step_dir), indent=0))
@@ -133,16 +155,22 @@ class Checkpointer:
             if path.stat().st_size != size or _file_crc(path) != crc:
                 raise CheckpointError(f"checkpoint file {path} is damaged (size/CRC32 changed)")
 
-    def meta(self, step: int) -> dict:
-        """The JSON metadata saved with `step`."""
-        path = self.step_dir(step)
+    def _read_meta(self, step: int) -> dict:
         try:
             restored = self._manager.restore(
                 step, args=ocp.args.Composite(**{_META: ocp.args.JsonRestore()})
             )
         except Exception as e:  # orbax raises json, key and value errors alike
-            raise CheckpointError(f"checkpoint {path}: metadata unreadable ({e})") from e
+            raise CheckpointError(
+                f"checkpoint {self.step_dir(step)}: metadata unreadable ({e})"
+            ) from e
         return dict(restored[_META])
+
+    def meta(self, step: int) -> dict:
+        """The JSON metadata saved with `step`."""
+        meta = self._read_meta(step)
+        meta.pop(_LAYOUT, None)
+        return meta
 
     def restore(self, targets: Mapping[str, Any], step: int | None = None) -> dict[str, Any]:
         """Restores items of checkpoint `step` (default: latest) into the shapes of `targets`.
@@ -164,11 +192,23 @@ class Checkpointer:
                 raise CheckpointError(f"no checkpoint in {self.directory}")
         self.verify(step)
         step_dir = self.step_dir(step)
-        args = {
-            name: ocp.args.StandardRestore({"tree": _abstract(tree)})
-            for name, tree in targets.items()
-        }
-        args[_META] = ocp.args.JsonRestore()
+        meta = self._read_meta(step)
+        layout = meta.pop(_LAYOUT, {})
+        args, flats = {}, {}
+        for item, tree in targets.items():
+            names, leaves, treedef = _flatten(tree)
+            saved = layout.get(item)
+            if saved is not None and saved != names:
+                pairs = itertools.zip_longest(saved, names, fillvalue="(nothing)")
+                diff = next((a, b) for a, b in pairs if a != b)
+                raise CheckpointError(
+                    f"checkpoint {step_dir} item {item!r} does not match this state's structure "
+                    f"(saved {diff[0]!r} where {diff[1]!r} is expected); saved by other code?"
+                )
+            flats[item] = (names, leaves, treedef)
+            args[item] = ocp.args.StandardRestore(
+                {n: _abstract_leaf(x) for n, x in zip(names, leaves, strict=True) if np.size(x)}
+            )
         try:
             restored = self._manager.restore(step, args=ocp.args.Composite(**args))
         except Exception as e:  # orbax/tensorstore raise many types; all mean "unreadable"
@@ -176,8 +216,13 @@ class Checkpointer:
             raise CheckpointError(
                 f"checkpoint {step_dir} is unreadable ({type(e).__name__}: {first})"
             ) from e
-        out = {name: restored[name]["tree"] for name in targets}
-        out[_META] = dict(restored[_META])
+        out: dict[str, Any] = {_META: meta}
+        for item, (names, leaves, treedef) in flats.items():
+            values = [
+                restored[item][n] if np.size(x) else jnp.zeros(np.shape(x), x.dtype)
+                for n, x in zip(names, leaves, strict=True)
+            ]
+            out[item] = jax.tree_util.tree_unflatten(treedef, values)
         return out
 
     def close(self) -> None:

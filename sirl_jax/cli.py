@@ -80,8 +80,8 @@ class TrainArgs:
     keep: int = 3
     """Checkpoints kept by rotation (>= 2 keeps an older good one next to the newest)."""
     guard: bool = True
-    """Keep the pre-chunk state so a non-finite chunk is rolled back and the last good state
-    checkpointed (one extra on-device copy of the train state, buffer included)."""
+    """Copy the state before each chunk so that, when a chunk goes non-finite, the last good
+    state is checkpointed (one extra on-device copy of the train state, buffer included)."""
     progress: bool = True
     """Show the tqdm progress bar."""
     tensorboard: bool = True
@@ -184,6 +184,13 @@ def parse_train_args(argv: list[str]) -> TrainArgs:
             detail = ", ".join(f"{k} (saved {old[k]!r}, given {new[k]!r})" for k in refused)
             allowed = ", ".join(sorted(RESUME_MUTABLE))
             raise UsageError(f"--resume cannot change {detail}; a resumed run may change {allowed}")
+        if base.train.capacity != args.config.train.capacity:
+            raise UsageError(
+                f"--resume: --steps {args.config.train.steps:,} would change the replay capacity "
+                f"min(buffer_size, steps) from {base.train.capacity:,} to "
+                f"{args.config.train.capacity:,}; start a new run, or set a buffer_size <= steps "
+                "when starting one you may extend"
+            )
     return args
 
 
@@ -222,22 +229,12 @@ def _tree_nbytes(tree: Any) -> int:
     return sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(tree))
 
 
-def guarded(step):
-    """`step` that returns its input state unchanged when the chunk's metrics show a failure.
-
-    Pure; jit it with `donate_argnums=0`. Costs one extra copy of the state on device.
-    """
+def copy_state(state: Any) -> Any:
+    """A device copy of `state` (jit it): the pre-chunk backup the donated step cannot keep."""
     import jax
     import jax.numpy as jnp
 
-    def guarded_step(state):
-        new_state, metrics = step(state)
-        counts = [v for k, v in metrics.items() if prog.is_failure_metric(k)]
-        bad = jnp.any(jnp.stack([jnp.any(c != 0) for c in counts])) if counts else False
-        keep = jax.tree.map(lambda old, new: jnp.where(bad, old, new), state, new_state)
-        return keep, metrics
-
-    return guarded_step
+    return jax.tree.map(jnp.copy, state)
 
 
 def save_checkpoint(ckpt: Checkpointer, state: Any, save_buffer: bool) -> int:
@@ -364,11 +361,11 @@ def _evaluate(run: _Run, eval_fn, state, env_steps: int) -> dict[str, float]:
     return metrics
 
 
-def _nonfinite_failure(run: _Run, state, before: int, bad: list[str]) -> TrainingFailure:
+def _nonfinite_failure(run: _Run, backup, before: int, bad: list[str]) -> TrainingFailure:
     reached = before + run.train.steps_per_call
     where = f"non-finite values in the chunk ending at env step {reached:,}: {', '.join(bad)}"
-    if run.args.guard:
-        good = save_checkpoint(run.ckpt, state, run.config.train.save_buffer)
+    if backup is not None:
+        good = save_checkpoint(run.ckpt, backup, run.config.train.save_buffer)
         return TrainingFailure(f"{where}; the last good state (env step {good:,}) is saved in "
                                f"{run.ckpt.directory} with the earlier checkpoints")  # fmt: skip
     return TrainingFailure(f"{where}; the state was not saved (--no-guard); the last checkpoint "
@@ -391,8 +388,8 @@ def _loop(run: _Run, state) -> int:
     import jax
 
     t = run.config.train
-    step_fn = guarded(run.train.step) if run.args.guard else run.train.step
-    step_fn = jax.jit(step_fn, donate_argnums=0)
+    step_fn = jax.jit(run.train.step, donate_argnums=0)
+    backup_fn = jax.jit(copy_state) if run.args.guard else (lambda s: None)
     eval_fn = jax.jit(run.train.evaluate)
     env_steps, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
     mean, timing = prog.MetricMean(), []  # timing: (time, env_steps) of chunks with updates
@@ -401,6 +398,7 @@ def _loop(run: _Run, state) -> int:
         while env_steps < t.steps and not stop.requested:
             before, updates_before = env_steps, updates
             try:
+                backup = backup_fn(state)
                 state, metrics = step_fn(state)
                 metrics, env_steps, updates = jax.device_get(
                     (metrics, state.env_steps, state.updates)
@@ -413,11 +411,11 @@ def _loop(run: _Run, state) -> int:
             bad = prog.failures(metrics)
             if bad:
                 run.log.log("metrics", before + run.train.steps_per_call, metrics)
-                raise _nonfinite_failure(run, state, before, bad)
+                raise _nonfinite_failure(run, backup, before, bad)
             run.bar.update(env_steps, updates, metrics)
             mean.add(metrics)
             if prog.crossed(before, env_steps, t.log_every) or env_steps >= t.steps:
-                run.log.log("metrics", env_steps, {"updates": updates, **mean.pop()})
+                run.log.log("metrics", env_steps, {**mean.pop(), "updates": updates})
             if prog.crossed(before, env_steps, t.eval_every):
                 _evaluate(run, eval_fn, state, env_steps)
             if prog.crossed(before, env_steps, t.checkpoint_every):
@@ -431,7 +429,7 @@ def _loop(run: _Run, state) -> int:
                         run.bar.write(f"CPU only: ~{prog.format_duration(eta)} more for "
                                       f"{t.steps:,} steps; use --preset smoke or a GPU")
     if stop.requested and env_steps < t.steps and mean.pending():
-        run.log.log("metrics", env_steps, {"updates": updates, **mean.pop()})
+        run.log.log("metrics", env_steps, {**mean.pop(), "updates": updates})
     run.saved = save_checkpoint(run.ckpt, state, t.save_buffer)
     run.bar.close()
     how = "stopped by Ctrl-C" if env_steps < t.steps else "done"
@@ -476,7 +474,10 @@ def train(args: TrainArgs) -> int:
     enable_compilation_cache()
     from sirl_jax.train import make_train
 
-    trainer = make_train(config, env)
+    try:
+        trainer = make_train(config, env)
+    except ValueError as e:  # static checks of the components (buffer size, shapes)
+        raise UsageError(str(e)) from e
     key = jax.random.PRNGKey(config.train.seed)
     nbytes = _tree_nbytes(jax.eval_shape(trainer.init, key).buffer)
     buffer = getattr(trainer, "buffer", None)

@@ -115,33 +115,53 @@ def failures(metrics: Mapping[str, float]) -> list[str]:
     ]
 
 
+_LAST = ("env_steps", "updates", "planning", "r_max", "return_ref")
+_SUM_SUFFIXES = ("/count", "/terminated", "/num_updates")
+
+
+def _reduction(name: str) -> str:
+    """How chunk values combine into a log row: state-like ones keep the last, counts add."""
+    if name in _LAST or name.startswith("buffer/"):
+        return "last"
+    if name.startswith("nonfinite") or name.endswith(_SUM_SUFFIXES):
+        return "sum"
+    return "mean"
+
+
 class MetricMean:
-    """Averages chunk metrics between log lines (NaNs skipped; `nonfinite*` counters summed)."""
+    """Combines chunk metrics between log rows: counters (`nonfinite*`, `*/count`,
+    `*/num_updates`, ...) are summed, state-like values (`updates`, `r_max`, `buffer/*`) keep
+    the last chunk's value, everything else is averaged over the chunks where it is finite
+    (NaN if it never was, e.g. losses before the first update)."""
 
     def __init__(self) -> None:
         self._sum: dict[str, float] = {}
         self._count: dict[str, int] = {}
+        self._last: dict[str, float] = {}
 
     def add(self, metrics: Mapping[str, float]) -> None:
         for name, value in metrics.items():
+            self._last[name] = value
             self._sum.setdefault(name, 0.0)
             self._count.setdefault(name, 0)
-            if math.isfinite(value) or name.startswith("nonfinite"):
+            if math.isfinite(value) or _reduction(name) == "sum":
                 self._sum[name] += value
                 self._count[name] += 1
 
     def pending(self) -> bool:
         """Whether chunks were added since the last `pop`."""
-        return bool(self._sum)
+        return bool(self._last)
 
     def pop(self) -> dict[str, float]:
-        """The aggregate since the last `pop` (NaN where every chunk was NaN); then resets."""
+        """The combined row since the last `pop`; then resets."""
         out = {}
-        for name, total in self._sum.items():
-            n = self._count[name]
-            if name.startswith("nonfinite"):
+        for name, last in self._last.items():
+            how, total, n = _reduction(name), self._sum[name], self._count[name]
+            if how == "last":
+                out[name] = last
+            elif how == "sum":
                 out[name] = total
             else:
                 out[name] = total / n if n else math.nan
-        self._sum, self._count = {}, {}
+        self._sum, self._count, self._last = {}, {}, {}
         return out

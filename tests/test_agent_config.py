@@ -10,17 +10,33 @@ from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
 @pytest.mark.timeout(30)
 def test_defaults_match_spec():
     c = AgentConfig()
-    assert (c.horizon, c.num_samples, c.num_elites, c.num_pi_trajs, c.iterations) == (3, 512, 64, 24, 6)
+    assert (c.horizon, c.num_samples, c.num_elites, c.num_pi_trajs, c.iterations) == (
+        3,
+        512,
+        64,
+        24,
+        6,
+    )
     assert (c.temperature, c.min_std, c.max_std, c.rho) == (0.5, 0.05, 2.0, 0.5)
     assert (c.consistency_coef, c.reward_coef, c.value_coef, c.entropy_coef) == (20, 0.1, 0.1, 1e-4)
     assert (c.tau, c.lr, c.enc_lr_scale, c.grad_clip_norm, c.pi_adam_eps) == (
-        0.01, 3e-4, 0.3, 20.0, 1e-5)
+        0.01,
+        3e-4,
+        0.3,
+        20.0,
+        1e-5,
+    )
     assert (c.batch_size, c.num_bins, c.vmin, c.vmax, c.dropout) == (256, 101, -10, 10, 0.01)
     assert c.arch == (256, 512, 512, 2, 5)
     assert c.mpc and not c.episodic and c.entropy_form == "scaled"
     s = c.sirl
     assert (s.enabled, s.beta, s.bc_form, s.g_source, s.return_kind) == (
-        True, 1.0, "loglik", "rmax", "undiscounted")
+        True,
+        1.0,
+        "loglik",
+        "rmax",
+        "undiscounted",
+    )
 
 
 @pytest.mark.timeout(30)

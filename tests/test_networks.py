@@ -26,7 +26,9 @@ SPEC_COUNTS = {
 def test_param_counts_match_spec(size):
     cfg = AgentConfig(model_size=size)
     for (obs, act), want in zip(((151, 61), (51, 19)), SPEC_COUNTS[size], strict=True):
-        shapes = jax.eval_shape(lambda k: init_params(cfg, obs, act, k), jax.random.PRNGKey(0))
+        shapes = jax.eval_shape(
+            lambda k, o=obs, a=act: init_params(cfg, o, a, k), jax.random.PRNGKey(0)
+        )
         got = count_params(shapes) / 1e6
         assert abs(got - want) / want < 0.01, (size, obs, act, got, want)
         if size == "5M" and act == 61:
@@ -81,8 +83,10 @@ def test_init_statistics_and_zero_heads():
 def test_policy_bounds_and_log_prob():
     cfg = AgentConfig.tiny()
     params = init_params(cfg, 20, 6, jax.random.PRNGKey(0))
-    params["policy"]["Dense_0"]["bias"] = params["policy"]["Dense_0"]["bias"].at[6:].set(
-        jnp.array([-50.0, 50.0, 0.0, 0.3, -0.3, 1.0])
+    params["policy"]["Dense_0"]["bias"] = (
+        params["policy"]["Dense_0"]["bias"]
+        .at[6:]
+        .set(jnp.array([-50.0, 50.0, 0.0, 0.3, -0.3, 1.0]))
     )
     wm = make_world_model(cfg, 6)
     z = jnp.zeros((1, 32))

@@ -70,8 +70,9 @@ def _ref_mppi(cfg, value_fn, mean, std, pi_actions, noise):
         s = np.exp(cfg.temperature * (ev - ev.max()))
         s /= s.sum()
         mean = np.einsum("k,hka->ha", s, el)
-        std = np.clip(np.sqrt(np.einsum("k,hka->ha", s, (el - mean[:, None]) ** 2)),
-                      cfg.min_std, cfg.max_std)
+        std = np.clip(
+            np.sqrt(np.einsum("k,hka->ha", s, (el - mean[:, None]) ** 2)), cfg.min_std, cfg.max_std
+        )
     return mean, std
 
 
@@ -84,8 +85,9 @@ def test_scan_equals_python_loop():
         return -np.einsum("h,hn->n", w, ((actions - TARGET) ** 2).sum(-1))
 
     def value_jax(actions, key):
-        return -jnp.einsum("h,hn->n", jnp.asarray(w, jnp.float32),
-                           ((actions - TARGET) ** 2).sum(-1))
+        return -jnp.einsum(
+            "h,hn->n", jnp.asarray(w, jnp.float32), ((actions - TARGET) ** 2).sum(-1)
+        )
 
     k1, k2 = jax.random.split(jax.random.PRNGKey(0))
     noise = jax.random.normal(k1, (iters, H, N - P, A))
@@ -93,7 +95,8 @@ def test_scan_equals_python_loop():
     mean0, std0 = jnp.full((H, A), 0.1), jnp.full((H, A), cfg.max_std)
     keys = jax.random.split(k2, iters)
     mean, std, _, _ = jax.jit(lambda *a: run_mppi(cfg, value_jax, *a))(
-        mean0, std0, pi_actions, noise, keys)
+        mean0, std0, pi_actions, noise, keys
+    )
     ref_mean, ref_std = _ref_mppi(cfg, value_np, mean0, std0, pi_actions, noise)
     np.testing.assert_allclose(mean, ref_mean, atol=1e-4)
     np.testing.assert_allclose(std, ref_std, atol=1e-4)
@@ -132,8 +135,8 @@ def test_real_agent_plan_and_policy_shapes():
     action, pstate = plan(state, pstate, obs, jnp.array([True, False]), jax.random.PRNGKey(2))
     assert action.shape == (2, A) and pstate.prev_mean.shape == (2, CFG.horizon, A)
     assert bool(jnp.all(jnp.isfinite(action))) and bool(jnp.all(jnp.abs(action) <= 1.0))
-    act = jax.jit(agent.act_policy, static_argnames="eval_mode")
-    a1 = act(state, obs, jax.random.PRNGKey(3), eval_mode=True)
-    a2 = act(state, obs, jax.random.PRNGKey(4), eval_mode=True)
+    act = jax.jit(lambda s, o, k: (agent.act_policy(s, o, k, True), agent.act_policy(s, o, k)))
+    a1, sample1 = act(state, obs, jax.random.PRNGKey(3))
+    a2, _ = act(state, obs, jax.random.PRNGKey(4))
     np.testing.assert_array_equal(a1, a2)  # eval: tanh(mu), no sampling
-    assert not np.allclose(act(state, obs, jax.random.PRNGKey(3)), a1)
+    assert not np.allclose(sample1, a1)

@@ -62,15 +62,27 @@ def test_first_update_hand_values(setup):
     R = np.linspace(-50.0, 150.0, B)
     omega = np.exp(np.minimum((R - 100.0) / 100.0, 0.0))
     assert float(m["sirl_weight_mean"]) == pytest.approx(omega.mean(), rel=1e-5)
-    want = {"consistency_loss", "reward_loss", "value_loss", "pi_loss", "sirl_loss",
-            "sirl_weight_mean", "total_loss", "grad_norm", "pi_grad_norm", "pi_scale",
-            "pi_entropy", "pi_log_std"}
+    want = {
+        "consistency_loss",
+        "reward_loss",
+        "value_loss",
+        "pi_loss",
+        "sirl_loss",
+        "sirl_weight_mean",
+        "total_loss",
+        "grad_norm",
+        "pi_grad_norm",
+        "pi_scale",
+        "pi_entropy",
+        "pi_log_std",
+    }
     assert want <= set(m)
     assert all(v.shape == () and bool(jnp.isfinite(v)) for v in m.values())
     # Polyak: target <- 0.99 target + 0.01 online (updated) Qs, on Q params only.
     want_t = polyak(state.target_qs, new.params["qs"], 0.01)
-    for a, b in zip(jax.tree_util.tree_leaves(new.target_qs), jax.tree_util.tree_leaves(want_t),
-                    strict=True):
+    for a, b in zip(
+        jax.tree_util.tree_leaves(new.target_qs), jax.tree_util.tree_leaves(want_t), strict=True
+    ):
         np.testing.assert_allclose(a, b, atol=1e-7)
 
 
@@ -96,11 +108,15 @@ def test_bc_term_changes_only_the_policy(setup):
     s1, m1 = updates["beta1"](state, batch, key)
     s0, _ = updates["beta0"](state, batch, key)
     for name in ("encoder", "dynamics", "reward", "qs"):
-        for a, b in zip(jax.tree_util.tree_leaves(s1.params[name]),
-                        jax.tree_util.tree_leaves(s0.params[name]), strict=True):
+        for a, b in zip(
+            jax.tree_util.tree_leaves(s1.params[name]),
+            jax.tree_util.tree_leaves(s0.params[name]),
+            strict=True,
+        ):
             np.testing.assert_array_equal(a, b)
-    diff = jax.tree_util.tree_map(lambda a, b: jnp.max(jnp.abs(a - b)), s1.params["policy"],
-                                  s0.params["policy"])
+    diff = jax.tree_util.tree_map(
+        lambda a, b: jnp.max(jnp.abs(a - b)), s1.params["policy"], s0.params["policy"]
+    )
     assert max(float(x) for x in jax.tree_util.tree_leaves(diff)) > 1e-5
     assert float(m1["sirl_loss"]) > 0
 
@@ -166,10 +182,10 @@ def test_bc_loglik_by_hand_and_per_dimension_scale():
     got, _ = wm.pi_log_prob(params, z, act)
     np.testing.assert_allclose(got, ll, rtol=2e-3)
     omega = jnp.array([0.5, 1.0])
-    bc = L.bc_term(wm, cfg, params["policy"], z[None], out, act[None], omega)
+    bc = L.bc_term(wm, cfg, params["policy"], z[None], None, act[None], omega)
     np.testing.assert_allclose(bc[0], -np.array([0.5, 1.0]) * ll / A, rtol=2e-3)
     # mse forms: omega * mean over action dims.
-    out2 = jax.tree_util.tree_map(lambda v: v[None], out)
+    out2 = jax.tree_util.tree_map(lambda v: jnp.stack([v, v]), out)  # [H+1=2, ...]
     for form, ref in (("mse_mean", out.mean_action), ("mse_sample", out.action)):
         c = dataclasses.replace(cfg, sirl=SirlConfig(bc_form=form))
         bc = L.bc_term(wm, c, params["policy"], z[None], out2, act[None], omega)

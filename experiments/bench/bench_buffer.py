@@ -3,13 +3,14 @@
     .venv/bin/python -m experiments.bench.bench_buffer [--capacity 3000000] [--envs 1 32]
 
 Times a jitted, donated `lax.scan` of `--steps` adds (one transition per env each) and of
-`--steps` samples, after a warm-up call, and prints microseconds per call. Both R_max modes are
+`--steps` samples, after warm-up, and prints the median microseconds per call. Both R_max modes are
 timed side by side: "in_buffer" recomputes a masked max over the [E, M] episode table each add.
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
 import time
 
 import jax
@@ -21,15 +22,20 @@ from sirl_jax.compile_cache import enable_compilation_cache
 OBS, ACT, HORIZON, BATCH = 151, 61, 3, 256
 
 
-def _timed(fn, *args, repeats: int):
-    out = jax.block_until_ready(fn(*args))  # compile + warm-up
-    start = time.perf_counter()
-    for _ in range(repeats):
-        out = jax.block_until_ready(fn(*args))
-    return out, (time.perf_counter() - start) / repeats
+def _median_time(fn, args_list) -> float:
+    """Median seconds of fn(*args) over args_list, after one warm-up call (the CPU is shared)."""
+    jax.block_until_ready(fn(*args_list[0]))
+    times = []
+    for args in args_list[1:]:
+        start = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
 
 
-def bench(capacity: int, num_envs: int, rmax_mode: str, steps: int, episode_length: int):
+def bench(
+    capacity: int, num_envs: int, rmax_mode: str, steps: int, episode_length: int, repeats: int
+):
     buf = make_buffer(capacity, num_envs, OBS, ACT, HORIZON, BATCH, rmax_mode=rmax_mode)
     check_buffer_fits(buf.nbytes)
 
@@ -45,27 +51,27 @@ def bench(capacity: int, num_envs: int, rmax_mode: str, steps: int, episode_leng
 
     def sample_chunk(state, key):
         def body(_, k):
-            return None, buf.sample(state, k).obs[0, 0, 0]
+            # Reduce every field so XLA cannot drop any part of the gather.
+            return None, sum(jnp.sum(x) for x in jax.tree.leaves(buf.sample(state, k)))
 
         return jax.lax.scan(body, None, jax.random.split(key, steps))[1]
 
     add_jit = jax.jit(add_chunk, donate_argnums=0)
     state = buf.init()
     t0 = 0
-    # Fill with a few episodes before timing.
-    for _ in range(max(1, 2 * episode_length // steps)):
+    for _ in range(max(1, 2 * episode_length // steps)):  # a few finished episodes first
         state = add_jit(state, t0)
         t0 += steps
-    start = time.perf_counter()
-    repeats = 5
+    add_times = []
     for _ in range(repeats):
-        state = add_jit(state, t0)
+        start = time.perf_counter()
+        state = jax.block_until_ready(add_jit(state, t0))
+        add_times.append(time.perf_counter() - start)
         t0 += steps
-    jax.block_until_ready(state)
-    add_s = (time.perf_counter() - start) / repeats / steps
     assert bool(buf.can_sample(state))
-    _, sample_s = _timed(jax.jit(sample_chunk), state, jax.random.PRNGKey(0), repeats=repeats)
-    return buf, add_s, sample_s / steps
+    keys = [(state, k) for k in jax.random.split(jax.random.PRNGKey(0), repeats + 1)]
+    sample_s = _median_time(jax.jit(sample_chunk), keys)
+    return buf, statistics.median(add_times) / steps, sample_s / steps
 
 
 def main() -> None:
@@ -74,6 +80,7 @@ def main() -> None:
     parser.add_argument("--envs", type=int, nargs="+", default=[1, 32])
     parser.add_argument("--steps", type=int, default=100)
     parser.add_argument("--episode-length", type=int, default=50)
+    parser.add_argument("--repeats", type=int, default=10)
     args = parser.parse_args()
     enable_compilation_cache()
     print(f"device: {jax.devices()[0]}  capacity {args.capacity:,}  O={OBS} A={ACT} B={BATCH}")
@@ -81,7 +88,7 @@ def main() -> None:
     for num_envs in args.envs:
         for mode in ("in_buffer", "all_time"):
             buf, add_s, sample_s = bench(
-                args.capacity, num_envs, mode, args.steps, args.episode_length
+                args.capacity, num_envs, mode, args.steps, args.episode_length, args.repeats
             )
             print(
                 f"{num_envs:>5} {mode:>10} {buf.nbytes / 1e9:>7.3f} "

@@ -2,7 +2,8 @@
 
 NormedLinear = Dense -> (Dropout) -> LayerNorm(eps 1e-5) -> activation. Kernels use PyTorch's
 `trunc_normal_(std=0.02)`: cut at +-2 absolute = +-100 std (flax's default cut at +-2 std would
-shrink the std to 0.0176), biases 0, LayerNorm 1/0. The last Dense of the reward and Q heads is zero-initialised.
+shrink the std to 0.0176), biases 0, LayerNorm 1/0. The last Dense of the reward and Q heads
+is zero-initialised.
 The Q ensemble is one member module whose params are stacked on a leading [num_q] axis and
 applied with jax.vmap, so any subset of members (e.g. the random pair) can be gathered and run.
 """

@@ -9,7 +9,7 @@ import jax
 from sirl_jax.envs import h1
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def robot_groups(variant: str) -> dict[str, tuple[str, ...]]:
     """Robot collider names by group ("feet", "legs", "body", "arms"[, "hands"]) of a variant."""
     return dict(h1.Robot(h1.load_model(variant)).geom_groups)

@@ -1,0 +1,100 @@
+"""Compile time and CPU throughput of every locomotion task, next to the bare robot.
+
+For each task: time to compile `VecEnv.reset` and `VecEnv.step` (E envs, jitted, the model as a
+jit argument), then control steps/s (E x calls / s) of the compiled step under uniform random
+actions, with auto-resets. The reference row "bare" is the robot on flat ground with a zero
+reward, so `ratio` is the task's cost of scene contacts and reward.
+
+    .venv/bin/python -m experiments.bench.bench_tasks [--variant h1hand] [--num-envs 64]
+        [--calls 20] [--tasks walk,pole]
+
+Compiles are not cached (a cached compile would time a disk read); timings on a shared 2-core
+machine vary by +-30%, so compare the ratios of one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import jax
+import jax.numpy as jnp
+
+import sirl_jax.envs.tasks as tasks
+from sirl_jax.envs.base import VecEnv
+from sirl_jax.envs.humanoid import HumanoidEnv, Task
+
+
+class BareTask(Task):
+    """No scene, zero reward, never terminates: the physics-only reference."""
+
+    name = "bare"
+
+    def evaluate(self, robot, data, task_state):
+        return jnp.zeros(()), jnp.zeros((), bool), task_state, {}
+
+
+def bench(env: HumanoidEnv, num_envs: int, calls: int, seed: int = 0) -> dict[str, float]:
+    """Compile seconds of reset and step, and control steps/s of the step, for one env."""
+
+    def reset(mx, key):
+        return VecEnv(env.with_model(mx), num_envs).reset(key)
+
+    def step(mx, state, action):
+        return VecEnv(env.with_model(mx), num_envs).step(state, action)
+
+    key = jax.random.PRNGKey(seed)
+    t0 = time.perf_counter()
+    reset_c = jax.jit(reset).lower(env.mx, key).compile()
+    t1 = time.perf_counter()
+    state = reset_c(env.mx, key)
+    actions = jax.random.uniform(key, (calls, num_envs, env.action_size), minval=-1.0, maxval=1.0)
+    t2 = time.perf_counter()
+    step_c = jax.jit(step, donate_argnums=1).lower(env.mx, state, actions[0]).compile()
+    t3 = time.perf_counter()
+    state = step_c(env.mx, state, actions[0])  # warm-up
+    jax.block_until_ready(state.obs)
+    t4 = time.perf_counter()
+    for i in range(calls):
+        state = step_c(env.mx, state, actions[i])
+    jax.block_until_ready(state.obs)
+    t5 = time.perf_counter()
+    return {
+        "reset_compile_s": t1 - t0,
+        "step_compile_s": t3 - t2,
+        "steps_per_s": num_envs * calls / (t5 - t4),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--variant", default="h1hand", choices=tasks.VARIANTS)
+    parser.add_argument("--num-envs", type=int, default=64)
+    parser.add_argument("--calls", type=int, default=20)
+    parser.add_argument("--tasks", default="", help="comma-separated task names (default: all)")
+    args = parser.parse_args()
+    names = [r.name for r in tasks.LOCOMOTION]
+    chosen = [n for n in args.tasks.split(",") if n] or names
+    unknown = sorted(set(chosen) - set(names))
+    if unknown:
+        raise SystemExit(f"unknown tasks {unknown}; allowed: {names}")
+    rows = {r.name: r for r in tasks.LOCOMOTION}
+    print(f"variant {args.variant}, E = {args.num_envs}, {args.calls} timed calls, "
+          f"backend {jax.default_backend()}")
+    header = f"{'task':<16}{'reset compile s':>16}{'step compile s':>16}{'steps/s':>10}{'ratio':>8}"
+    print(header)
+    print("-" * len(header))
+    ref = bench(HumanoidEnv(BareTask(), args.variant), args.num_envs, args.calls)
+    print(f"{'bare':<16}{ref['reset_compile_s']:>16.1f}{ref['step_compile_s']:>16.1f}"
+          f"{ref['steps_per_s']:>10.0f}{1.0:>8.2f}", flush=True)
+    for name in chosen:
+        row = rows[name]
+        env = HumanoidEnv(row.task(), args.variant, success_bar=row.success_bar)
+        out = bench(env, args.num_envs, args.calls)
+        ratio = out["steps_per_s"] / ref["steps_per_s"]
+        print(f"{name:<16}{out['reset_compile_s']:>16.1f}{out['step_compile_s']:>16.1f}"
+              f"{out['steps_per_s']:>10.0f}{ratio:>8.2f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,92 @@
+"""Balance on a board lying on a sphere, fixed (balance_simple) or free (balance_hard)."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import mujoco
+from mujoco import mjx
+
+from sirl_jax.envs import rewards as R
+from sirl_jax.envs.humanoid import ALL_GROUPS, BIT_OBJECT, Task, geom_mask, set_contact_bits
+from sirl_jax.envs.tasks.common import fallen, robot_groups
+
+BALANCE_ROOT = (-0.1, 0.0, 1.38)
+BOARD_Z, BOARD_HALF = 0.37, (0.15, 0.55, 0.03)
+PIVOT_Z, PIVOT_RADIUS = 0.17, 0.17
+
+
+def balance_reward(
+    head_z: jax.Array, zz: jax.Array, force: jax.Array, v_com: jax.Array
+) -> tuple[jax.Array, dict[str, jax.Array]]:
+    """HumanoidBench Balance: small_control * tol(head_z, (2.02, inf), 0.4125) * upright(0.9)
+    * dont_move (standing height 1.65 + 0.37, margin 1.65 / 4)."""
+    standing = R.tolerance(head_z, (R.STAND_HEIGHT + 0.37, math.inf), margin=R.STAND_HEIGHT / 4)
+    upright = R.upright(zz, 0.9)
+    small_control = R.small_control(force)
+    dont_move = R.dont_move(v_com[:2])
+    reward = small_control * standing * upright * dont_move
+    terms = {
+        "standing": standing,
+        "upright": upright,
+        "small_control": small_control,
+        "dont_move": dont_move,
+    }
+    return reward, terms
+
+
+class BalanceTask(Task):
+    """Stand on the board. Terminates when the root z < 0.8, when the sphere touches anything but
+    the floor or the board, or when the floor touches anything but the sphere."""
+
+    metric_names = ("standing", "upright", "small_control", "dont_move")
+
+    def __init__(self, name: str):
+        if name not in ("balance_simple", "balance_hard"):
+            raise ValueError(f"unknown balance task {name!r}; allowed: 'balance_simple', 'balance_hard'")
+        self.name = name
+        self.free_pivot = name == "balance_hard"
+
+    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
+        groups = robot_groups(variant)
+        standing_on = set_contact_bits(spec, groups, ("feet", "legs"))
+        everything = set_contact_bits(spec, groups, ALL_GROUPS)
+        board = spec.worldbody.add_body(name="stand_board", pos=(0, 0, BOARD_Z))
+        board.add_freejoint(name="free_stand_board")
+        # Board: robot feet/legs, the floor (contype 1) and the pivot (BIT_OBJECT).
+        board.add_geom(name="stand_board_collision", type=mujoco.mjtGeom.mjGEOM_BOX,
+                       size=BOARD_HALF, contype=standing_on, conaffinity=1 | BIT_OBJECT,
+                       rgba=(0.7, 0.7, 0.7, 1))
+        pivot = spec.worldbody.add_body(name="rolling_pivot", pos=(0, 0, PIVOT_Z))
+        if self.free_pivot:
+            pivot.add_freejoint(name="free_rolling_pivot")
+        pivot.add_geom(name="pivot_sphere_collision", type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                       size=(PIVOT_RADIUS, 0, 0), contype=everything | BIT_OBJECT, conaffinity=1,
+                       rgba=(0.3, 0.3, 0.3, 1))
+        key = spec.keys[0]
+        qpos = list(key.qpos)
+        qpos[0:3] = BALANCE_ROOT
+        key.qpos = qpos  # object entries are filled from their bodies' positions at compile
+
+    def bind(self, model, robot) -> None:
+        def gid(name):
+            return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+
+        floor, board, sphere = gid("floor"), gid("stand_board_collision"), gid("pivot_sphere_collision")
+        self._sphere = jnp.asarray(geom_mask(model, [sphere]))
+        self._not_sphere = ~self._sphere
+        self._floor = jnp.asarray(geom_mask(model, [floor]))
+        self._not_floor_board = ~jnp.asarray(geom_mask(model, [floor, board]))
+
+    def evaluate(self, robot, data: mjx.Data, task_state):
+        reward, terms = balance_reward(
+            robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
+            robot.com_velocity(data),
+        )  # fmt: skip
+        dist, geom = data.contact.dist, data.contact.geom
+        bad_contact = R.any_contact(dist, geom, self._sphere, self._not_floor_board) | R.any_contact(
+            dist, geom, self._floor, self._not_sphere
+        )
+        return reward, fallen(data.qpos[2], 0.8) | bad_contact, task_state, terms

@@ -1,0 +1,334 @@
+"""The CLI shell: bad input, run-dir contents, Ctrl-C + resume == uninterrupted, failures.
+
+The real runs use the smoke preset shrunk further (pendulum, 2 envs, 25 steps per env per
+chunk, 650 env steps) and share one compiled train step through the compilation cache. The
+failure paths (non-finite chunk, out of memory) use a toy `make_train` with a 3-float state.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from flax import struct
+
+from sirl_jax import cli, progress, runlog
+from sirl_jax.checkpoint import Checkpointer
+from sirl_jax.config import Config
+
+STEPS, STOP_AT, PER_CALL = 650, 550, 50
+BASE = [
+    "--preset", "smoke", "--steps", str(STEPS), "--seed-steps", "200", "--chunk-steps", "25",
+    "--num-envs", "2", "--eval-every", str(STEPS), "--log-every", str(PER_CALL),
+    "--checkpoint-every", "0", "--no-progress",
+]  # fmt: skip
+
+
+def _listing(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _rows(path: Path) -> list[dict]:
+    return [{k: v for k, v in r.items() if k != "wall_time"} for r in runlog.read_jsonl(path)]
+
+
+def _same(a, b) -> bool:
+    return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+
+
+def _load_final(run_dir: Path):
+    """The newest checkpoint's state and buffer leaves, restored against its own layout."""
+    from sirl_jax.cli import load_task
+    from sirl_jax.train import make_train
+
+    config = runlog.load_config(run_dir, Config)
+    trainer = make_train(config, load_task(config.train.task)[1])
+    ckpt = Checkpointer(run_dir / "checkpoints")
+    state, step = cli.restore_checkpoint(ckpt, trainer, jax.random.PRNGKey(config.train.seed))
+    ckpt.close()
+    return step, jax.tree.leaves(state)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Run A: uninterrupted. Run B: Ctrl-C after the chunk ending at STOP_AT, then --resume."""
+    root = tmp_path_factory.mktemp("runs")
+    a, b = root / "a", root / "b"
+    assert cli.main(["train", *BASE, "--run-dir", str(a)]) == 0
+
+    original = progress.Progress.update
+    sent = []
+
+    def interrupt_once(self, env_steps, updates, metrics):
+        original(self, env_steps, updates, metrics)
+        if env_steps >= STOP_AT and not sent:
+            sent.append(env_steps)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    progress.Progress.update = interrupt_once
+    try:
+        stopped = cli.main(["train", *BASE, "--run-dir", str(b)])
+    finally:
+        progress.Progress.update = original
+    steps_after_stop = Checkpointer(b / "checkpoints").steps()
+    resumed = cli.main(["train", "--resume", str(b), "--no-progress"])
+    return {"a": a, "b": b, "stopped": stopped, "resumed": resumed, "sent": sent,
+            "steps_after_stop": steps_after_stop}  # fmt: skip
+
+
+@pytest.mark.timeout(420)
+def test_ctrl_c_then_resume_equals_uninterrupted_run(runs):
+    assert runs["stopped"] == 0 and runs["resumed"] == 0
+    assert runs["sent"] == [STOP_AT] and runs["steps_after_stop"] == [STOP_AT]
+    step_a, leaves_a = _load_final(runs["a"])
+    step_b, leaves_b = _load_final(runs["b"])
+    assert step_a == step_b == STEPS
+    assert len(leaves_a) == len(leaves_b)
+    for x, y in zip(leaves_a, leaves_b, strict=True):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    for stream in ("metrics.jsonl", "eval.jsonl"):
+        rows_a, rows_b = _rows(runs["a"] / stream), _rows(runs["b"] / stream)
+        assert [r["env_steps"] for r in rows_a] == [r["env_steps"] for r in rows_b]
+        for ra, rb in zip(rows_a, rows_b, strict=True):
+            assert ra.keys() == rb.keys()
+            assert all(_same(ra[k], rb[k]) for k in ra), (ra, rb)
+    # the run learned something: updates happened before the interruption point
+    assert _rows(runs["a"] / "metrics.jsonl")[-1]["updates"] > 0
+
+
+@pytest.mark.timeout(120)
+def test_run_dir_layout(runs):
+    a = runs["a"]
+    config = runlog.load_config(a, Config)
+    assert config.train.steps == STEPS and config.train.task == "pendulum"
+    versions = json.loads((a / "versions.json").read_text())
+    assert len(versions) == 1 and {"python", "jax", "jaxlib", "mujoco", "orbax-checkpoint",
+                                   "git_commit", "devices"} <= versions[0].keys()  # fmt: skip
+    assert len(json.loads((runs["b"] / "versions.json").read_text())) == 2  # start + resume
+    rows = runlog.read_jsonl(a / "metrics.jsonl")
+    assert [r["env_steps"] for r in rows] == list(range(PER_CALL, STEPS + 1, PER_CALL))
+    csv_lines = (a / "metrics.csv").read_text().splitlines()
+    assert len(csv_lines) == len(rows) + 1 and "nonfinite_loss" in csv_lines[0]
+    assert [r["env_steps"] for r in runlog.read_jsonl(a / "eval.jsonl")] == [STEPS]
+    assert list((a / "tb").glob("events.out.tfevents.*"))
+    assert Checkpointer(a / "checkpoints").steps() == [STEPS]
+
+
+@pytest.mark.timeout(120)
+def test_eval_command_reproduces_the_logged_evaluation(runs, capsys):
+    capsys.readouterr()
+    assert cli.main(["eval", "--run", str(runs["a"])]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    logged = _rows(runs["a"] / "eval.jsonl")[-1]
+    assert out["env_steps"] == STEPS
+    for k, v in logged.items():
+        assert _same(out[k], v), k
+
+
+@pytest.mark.timeout(120)
+def test_existing_run_dir_is_refused_and_untouched(runs, capsys):
+    before = _listing(runs["a"])
+    assert cli.main(["train", *BASE, "--run-dir", str(runs["a"])]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:") and "already exists" in err and "--resume" in err
+    assert _listing(runs["a"]) == before
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize(
+    ("flags", "needle"),
+    [(["--seed", "5"], "train.seed"), (["--agent.horizon", "4"], "agent.horizon"),
+     (["--steps", "700"], "replay capacity")],
+)  # fmt: skip
+def test_resume_refuses_conflicting_overrides(runs, capsys, flags, needle):
+    before = _listing(runs["b"])
+    assert cli.main(["train", "--resume", str(runs["b"]), *flags]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:") and needle in err and len(err.splitlines()) == 1
+    assert _listing(runs["b"]) == before
+
+
+@pytest.mark.timeout(180)
+def test_corrupt_checkpoint_names_the_file_and_deletes_nothing(runs, tmp_path, capsys):
+    run = tmp_path / "copy"
+    shutil.copytree(runs["b"], run)
+    files = [p for p in (run / "checkpoints" / str(STEPS) / "state").rglob("*") if p.is_file()]
+    victim = max(files, key=lambda p: p.stat().st_size)
+    raw = bytearray(victim.read_bytes())
+    raw[len(raw) // 2] ^= 0x55
+    victim.write_bytes(bytes(raw))
+    before = _listing(run)
+    assert cli.main(["train", "--resume", str(run), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert victim.name in err and "nothing was deleted" in err and "Traceback" not in err
+    assert _listing(run) == before
+
+
+# ---------------------------------------------------------------- bad input, no training
+
+
+@pytest.mark.timeout(60)
+def test_unknown_task_lists_valid_tasks(tmp_path, capsys):
+    assert cli.main(["train", "--task", "no-such-task", "--run-dir", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: unknown task 'no-such-task'") and "pendulum" in err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "r").exists()
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize(
+    ("flags", "needle"),
+    [(["--steps", "-5"], "train.steps=-5"), (["--num-envs", "0"], "train.num_envs=0"),
+     (["--utd", "0"], "train.utd"), (["--beta", "-1"], "beta"),
+     (["--g", "best"], "g_source"), (["--model-size", "7M"], "model_size"),
+     (["--steps", "many"], "--train.steps"), (["--keep", "0"], "--keep")],
+)  # fmt: skip
+def test_nonsense_numbers_give_one_line(tmp_path, capsys, flags, needle):
+    assert cli.main(["train", *flags, "--run-dir", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:") and needle in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.timeout(120)
+def test_buffer_that_does_not_fit_is_refused(tmp_path, capsys):
+    huge = str(10**11)  # ~2.5 TB of replay
+    argv = ["train", "--preset", "smoke", "--num-envs", "64", "--steps", huge, "--buffer-size",
+            huge, "--run-dir", str(tmp_path / "r")]  # fmt: skip
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("error: replay buffer needs") and not (tmp_path / "r").exists()
+
+
+@pytest.mark.timeout(60)
+def test_help_runs_as_a_module():
+    out = subprocess.run([sys.executable, "-m", "sirl_jax", "--help"], capture_output=True,
+                         text=True, timeout=50, check=False)  # fmt: skip
+    assert out.returncode == 0 and "train" in out.stdout and "tasks" in out.stdout
+
+
+@pytest.mark.timeout(60)
+def test_train_help_lists_nested_and_short_flags(capsys):
+    assert cli.main(["train", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "--agent.horizon" in out and "--train.num-envs" in out and "--g rmax|target" in out
+
+
+def test_short_flags_expand_to_config_fields():
+    argv = ["--seed", "3", "--num-envs=4", "--model-size", "1M", "--beta", "0.5", "--g",
+            "target", "--no-save-buffer", "--agent.horizon", "5"]  # fmt: skip
+    args = cli.parse_train_args(argv)
+    c = args.config
+    assert (c.train.seed, c.train.num_envs, c.agent.model_size) == (3, 4, "1M")
+    assert (c.agent.sirl.beta, c.agent.sirl.g_source, c.agent.horizon) == (0.5, "target", 5)
+    assert c.train.save_buffer is False
+
+
+def test_metric_mean_and_schedule():
+    m = progress.MetricMean()
+    m.add({"train/pi_loss": math.nan, "nonfinite_obs": 0, "updates": 10, "episode/count": 1})
+    m.add({"train/pi_loss": 2.0, "nonfinite_obs": 1, "updates": 30, "episode/count": 2})
+    m.add({"train/pi_loss": 4.0, "nonfinite_obs": 0, "updates": 50, "episode/count": 0})
+    assert m.pop() == {"train/pi_loss": 3.0, "nonfinite_obs": 1, "updates": 50, "episode/count": 3}
+    assert not m.pending()
+    assert progress.crossed(90, 110, 100) and not progress.crossed(100, 199, 100)
+    assert not progress.crossed(0, 10**9, 0)
+    assert progress.failures({"nonfinite_loss": 2.0, "train/pi_loss": math.nan}) == [
+        "nonfinite_loss=2"
+    ]
+
+
+# ---------------------------------------------------------------- failures (toy train)
+
+
+@struct.dataclass
+class _ToyState:
+    params: jax.Array
+    buffer: dict
+    key: jax.Array
+    env_steps: jax.Array
+    updates: jax.Array
+
+
+@dataclasses.dataclass(frozen=True)
+class _ToyTrain:
+    """10 env steps and one update per call; the chunk reaching `fail_at` reports a NaN loss."""
+
+    fail_at: int
+    oom: bool = False
+    steps_per_call: int = 10
+
+    def init(self, key):
+        zero = jnp.zeros((), jnp.int32)
+        return _ToyState(jnp.zeros(3), {"obs": jnp.zeros((4, 2))}, key, zero, zero)
+
+    def step(self, state):
+        if self.oom:
+            raise jax.errors.JaxRuntimeError("RESOURCE_EXHAUSTED: Out of memory allocating 8 GB")
+        env_steps = state.env_steps + self.steps_per_call
+        bad = env_steps >= self.fail_at
+        metrics = {"train/loss": jnp.where(bad, jnp.nan, 1.0), "nonfinite_loss": bad.astype(int)}
+        new = state.replace(
+            params=state.params + jnp.where(bad, jnp.nan, 1.0),
+            buffer={"obs": state.buffer["obs"] + 1.0},
+            key=jax.random.split(state.key)[0],
+            env_steps=env_steps,
+            updates=state.updates + 1,
+        )
+        return new, metrics
+
+    def evaluate(self, state, key):
+        return {"eval/x": jnp.sum(state.params)}
+
+
+def _toy_run(monkeypatch, tmp_path, toy: _ToyTrain, *flags: str) -> int:
+    import sirl_jax.train
+
+    monkeypatch.setattr(sirl_jax.train, "make_train", lambda config, env: toy)
+    argv = ["train", "--preset", "smoke", "--steps", "100", "--checkpoint-every", "20",
+            "--eval-every", "0", "--log-every", "10", "--no-progress", "--no-tensorboard",
+            "--run-dir", str(tmp_path / "run"), *flags]  # fmt: skip
+    return cli.main(argv)
+
+
+@pytest.mark.timeout(120)
+def test_nonfinite_chunk_stops_and_saves_last_good_state(monkeypatch, tmp_path, capsys):
+    toy = _ToyTrain(fail_at=40)
+    assert _toy_run(monkeypatch, tmp_path, toy) == 1
+    err = capsys.readouterr().err.strip()
+    assert "env step 40" in err and "nonfinite_loss=1" in err and "env step 30" in err
+    ckpt = Checkpointer(tmp_path / "run" / "checkpoints")
+    assert ckpt.steps() == [20, 30]  # the periodic one is kept, the last good one added
+    abstract = jax.eval_shape(toy.init, jax.random.PRNGKey(0))
+    good = ckpt.restore({"state": abstract.replace(buffer=None), "buffer": abstract.buffer})
+    np.testing.assert_array_equal(good["state"].params, np.full(3, 3.0))  # 3 good chunks
+    np.testing.assert_array_equal(good["buffer"]["obs"], np.full((4, 2), 3.0))
+    assert int(good["state"].env_steps) == 30 and int(good["state"].updates) == 3
+    rows = runlog.read_jsonl(tmp_path / "run" / "metrics.jsonl")
+    assert rows[-1]["env_steps"] == 40 and rows[-1]["nonfinite_loss"] == 1
+
+
+@pytest.mark.timeout(120)
+def test_nonfinite_without_guard_keeps_only_periodic_checkpoints(monkeypatch, tmp_path, capsys):
+    assert _toy_run(monkeypatch, tmp_path, _ToyTrain(fail_at=50), "--no-guard") == 1
+    assert "not saved" in capsys.readouterr().err
+    assert Checkpointer(tmp_path / "run" / "checkpoints").steps() == [20, 40]
+
+
+@pytest.mark.timeout(120)
+def test_out_of_memory_says_what_to_reduce(monkeypatch, tmp_path, capsys):
+    assert _toy_run(monkeypatch, tmp_path, _ToyTrain(fail_at=10**6, oom=True)) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: out of device memory") and "--buffer-size" in err
+    assert "Traceback" not in err

@@ -1,0 +1,232 @@
+"""The 14 HumanoidBench locomotion tasks: registry, scene geometry, and batched rollouts.
+
+Each rollout test compiles one program per task, `reset` then `EPISODE` + `EXTRA` `VecEnv.step`s
+in a `lax.scan` over E = 4 envs, with the `mjx.Model` as a jit argument. It runs twice: with the
+normal model under the action that holds the keyframe pose (the robot stands for the whole
+short episode, which must end by truncation at exactly `EPISODE` steps), and with a limp model
+(every actuator's gain and bias zeroed), where the robot collapses and every task with a
+termination must terminate. Compiles dominate (about a minute each on 2 cores), so CI runs a
+representative subset and the rest is marked slow.
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import sirl_jax.envs.tasks as tasks
+from sirl_jax.envs import TASKS, make
+from sirl_jax.envs.base import VecEnv
+from sirl_jax.envs.tasks.obstacles import maze_block_centres, pole_positions
+from sirl_jax.envs.tasks.terrain import slide_boxes, stair_treads
+
+E = 4
+EPISODE = 40  # a short time limit, so truncation shows up in a short rollout
+EXTRA = 40
+NEVER_TERMINATE = ("reach", "crawl")
+OBS = {
+    "h1hand": {"reach": 157, "sit_hard": 164, "balance_simple": 164, "balance_hard": 177},
+    "h1": {"reach": 57, "sit_hard": 64, "balance_simple": 64, "balance_hard": 77},
+}
+BASE_OBS = {"h1hand": 151, "h1": 51}
+ACT = {"h1hand": 61, "h1": 19}
+NAMES = [row.name for row in tasks.LOCOMOTION]
+CI_IDS = (
+    "h1hand-walk-v0", "h1hand-reach-v0", "h1hand-maze-v0", "h1hand-balance_hard-v0", "h1-walk-v0",
+)  # fmt: skip
+
+
+def _param(task_id: str):
+    marks = () if task_id in CI_IDS else (pytest.mark.slow,)
+    return pytest.param(task_id, marks=marks, id=task_id)
+
+
+ALL_IDS = [_param(f"{v}-{n}-v0") for v in tasks.VARIANTS for n in NAMES]
+
+
+# -- registry and static model facts (no jit) --------------------------------------------------
+def test_registry_has_all_ids_and_aliases():
+    for variant in tasks.VARIANTS:
+        for name in NAMES:
+            spec = TASKS[f"{variant}-{name}-v0"]
+            assert spec.episode_length == 1000
+            assert spec.success_bar is not None
+    for name in NAMES:
+        assert TASKS[name].id == f"h1hand-{name}-v0"
+    assert TASKS["maze"].success_bar == 1200 and TASKS["reach"].success_bar == 12000
+    with pytest.raises(KeyError, match="unknown task"):
+        make("h1hand-fly-v0")
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("variant", tasks.VARIANTS)
+def test_sizes_of_every_task(variant):
+    for name in NAMES:
+        env = make(f"{variant}-{name}-v0")
+        expected = OBS[variant].get(name, BASE_OBS[variant])
+        assert env.observation_size == expected, name
+        assert env.action_size == ACT[variant]
+        assert env.episode_length == 1000
+        assert env.success_bar == TASKS[name].success_bar
+        assert set(env.metric_names()), name
+    assert make("walk", episode_length=7).episode_length == 7
+    with pytest.raises(ValueError, match="episode_length"):
+        make("walk", episode_length=0)
+
+
+def test_scene_geometry():
+    blocks = maze_block_centres()
+    assert len(blocks) == 30
+    cells = {(round(x, 2), round(y, 2)) for _, _, x, y in blocks}
+    # start and checkpoints are free cells: (0, 0), (3, 0), (3, 6), (6, 6)
+    for x, y in ((0.0, 0.0), (3.0, 0.0), (3.0, 6.0), (6.0, 6.0)):
+        assert all(abs(x - cx) >= 0.75 or abs(y - cy) >= 0.75 for cx, cy in cells), (x, y)
+    poles = pole_positions()
+    assert poles.shape == (144, 2) and poles[:, 0].min() == 1 and poles[:, 0].max() == 41
+    treads = stair_treads(3.2)
+    assert len(treads) == 9
+    assert max(h for _, h in treads) == pytest.approx(0.9)
+    assert min(x for x, _ in treads) - 0.3 == pytest.approx(3.2 - 2.7)
+    for (pos, size, quat), (x_lo, x_hi) in zip(slide_boxes(0.3), ((0.3, 5.3), (5.3, 10.3))):
+        # the two ends of each box's top face lie on the prism's vertices
+        w, _, qy, _ = quat
+        angle = 2 * math.atan2(qy, w)
+        ends = []
+        for sign in (-1, 1):
+            lx, lz = sign * size[0], size[2]
+            ends.append((pos[0] + math.cos(angle) * lx + math.sin(angle) * lz,
+                         pos[2] - math.sin(angle) * lx + math.cos(angle) * lz))
+        xs = sorted(ends)
+        assert xs[0][0] == pytest.approx(x_lo) and xs[1][0] == pytest.approx(x_hi)
+        assert {round(z, 6) for _, z in xs} == {0.0, 1.75}
+
+
+# -- batched rollouts --------------------------------------------------------------------------
+def _limp(mx):
+    """The model with every actuator's gain and bias zeroed: no actuator force at all."""
+    return mx.replace(
+        actuator_gainprm=mx.actuator_gainprm.at[:, 0].set(0.0),
+        actuator_biasprm=mx.actuator_biasprm.at[:, 1:3].set(0.0),
+    )
+
+
+def _rollout(env):
+    venv = VecEnv(env, E)
+
+    def run(mx, key, action):
+        v = VecEnv(env.with_model(mx), E)
+        start = v.reset(key)
+
+        def body(state, _):
+            state = v.step(state, jnp.broadcast_to(action, (E, env.action_size)))
+            finite = jnp.all(jnp.isfinite(state.obs), -1) & jnp.all(
+                jnp.isfinite(state.final_obs), -1
+            )
+            trace = {
+                "finite": finite,
+                "reward": state.reward,
+                "terminated": state.terminated,
+                "truncated": state.truncated,
+                "last_length": state.last_length,
+                "step_count": state.step_count,
+                "metrics": state.metrics,
+            }
+            return state, trace
+
+        end, trace = jax.lax.scan(body, start, None, length=EPISODE + EXTRA)
+        return start, end, trace
+
+    assert venv.episode_length == EPISODE
+    return jax.jit(run)
+
+
+_COMPILED: dict[str, tuple] = {}
+
+
+@pytest.fixture(scope="module")
+def rollouts():
+    """task id -> (env, normal run, limp run); one compile per task, shared by the tests."""
+
+    def get(task_id):
+        if task_id not in _COMPILED:
+            env = make(task_id, episode_length=EPISODE)
+            run = _rollout(env)
+            key = jax.random.PRNGKey(0)
+            hold = jnp.asarray(env.robot.keyframe_action)
+            normal = jax.device_get(run(env.mx, key, hold))
+            limp = jax.device_get(run(_limp(env.mx), key, jnp.zeros(env.action_size)))
+            _COMPILED[task_id] = (env, normal, limp)
+        return _COMPILED[task_id]
+
+    return get
+
+
+def _check_bookkeeping(trace):
+    term, trunc = trace["terminated"], trace["truncated"]
+    assert trace["finite"].all()
+    assert np.isfinite(trace["reward"]).all()
+    assert not (term & trunc).any()
+    assert (trace["step_count"] < EPISODE).all()
+    assert (trace["last_length"][trunc] == EPISODE).all()
+    assert (trace["last_length"][term] <= EPISODE).all()
+    for name, values in trace["metrics"].items():
+        assert np.isfinite(values).all(), name
+
+
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize("task_id", ALL_IDS)
+def test_rollout(rollouts, task_id):
+    env, (start, _, hold), (_, _, limp) = rollouts(task_id)
+    name = task_id.split("-")[1]
+    assert start.obs.shape == (E, env.observation_size)
+    assert np.isfinite(start.obs).all() and start.first.all()
+    assert set(hold["metrics"]) == set(env.metric_names())
+    _check_bookkeeping(hold)
+    _check_bookkeeping(limp)
+    # Holding the keyframe pose: no termination within the short episode (balance excepted: the
+    # board tips), so every env is truncated at exactly EPISODE steps.
+    if not name.startswith("balance"):
+        assert not hold["terminated"][:EPISODE].any()
+        assert hold["truncated"][EPISODE - 1].all()
+    # Limp robot: it collapses and terminates, unless the task never terminates.
+    if name in NEVER_TERMINATE:
+        assert not limp["terminated"].any()
+        assert limp["truncated"][EPISODE - 1].all()
+    else:
+        assert limp["terminated"].any(axis=0).all()
+
+
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize("task_id", [_param("h1hand-maze-v0")])
+def test_maze_pays_first_stage_on_first_step(rollouts, task_id):
+    _, (start, _, hold), _ = rollouts(task_id)
+    assert (start.task == 0).all()
+    assert (hold["reward"][0] > 100.0).all()  # +100 for reaching checkpoint 0 at the start
+    assert (hold["metrics"]["stage"][0] == 1).all()
+
+
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize("task_id", [_param("h1hand-reach-v0")])
+def test_reach_goals_are_random_per_env(rollouts, task_id):
+    _, (start, _, _), _ = rollouts(task_id)
+    goal = np.asarray(start.task)
+    assert goal.shape == (E, 3)
+    assert len({tuple(g) for g in goal.round(6)}) == E
+    assert (goal >= np.array([-2, -2, 0.2])).all() and (goal <= np.array([2, 2, 2])).all()
+    np.testing.assert_allclose(start.obs[:, -3:], goal)
+
+
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize("task_id", [_param("h1hand-sit_hard-v0")])
+def test_sit_hard_randomises_root(rollouts, task_id):
+    _, (start, _, _), _ = rollouts(task_id)
+    qpos = np.asarray(start.physics.qpos)
+    assert ((qpos[:, 0] >= 0.2) & (qpos[:, 0] <= 0.4)).all()
+    assert ((qpos[:, 1] >= -0.15) & (qpos[:, 1] <= 0.15)).all()
+    yaw = 2 * np.arctan2(qpos[:, 6], qpos[:, 3])
+    assert (np.abs(yaw) <= 1.8 + 1e-5).all() and len(set(yaw.round(5))) == E
+    np.testing.assert_allclose(np.linalg.norm(qpos[:, 3:7], axis=1), 1.0, rtol=1e-5)

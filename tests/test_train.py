@@ -1,0 +1,189 @@
+"""The fused train step: seed phase, pretraining, UTD bookkeeping, one compile, seeds vmapped.
+
+Setup (hand-computed expectations): E = 2 pendulums with 50-step episodes, K = 25 steps per
+chunk (50 transitions), seed_steps = 100 transitions, utd = 0.75. Chunks 1-2 act randomly;
+the last step of chunk 2 reaches 100 transitions with one finished 50-step episode per env, so
+pretraining runs 100 * 0.75 = 75 updates there and planning starts in chunk 3. From then on each
+vectorised step owes E * utd = 1.5 updates: 25 steps of chunk 3 run floor(37.5) = 37 updates
+and carry 0.5.
+"""
+
+import dataclasses
+
+import jax
+import numpy as np
+import pytest
+
+from sirl_jax.agent import AgentConfig, SirlConfig
+from sirl_jax.config import PRESETS, Config, TrainConfig, get_preset, register_preset
+from sirl_jax.envs.classic import PendulumSwingup
+from sirl_jax.train import make_train
+
+E, K, T, SEED_STEPS, UTD = 2, 25, 50, 100, 0.75
+
+
+def _config(**train) -> Config:
+    base = dict(
+        task="pendulum",
+        steps=1_000,
+        num_envs=E,
+        chunk_steps=K,
+        seed_steps=SEED_STEPS,
+        utd=UTD,
+        buffer_size=1_000,
+        eval_episodes=2,
+    )
+    base.update(train)
+    return Config(agent=AgentConfig.tiny(batch_size=8), train=TrainConfig(**base))
+
+
+@pytest.fixture(scope="module")
+def train():
+    return make_train(_config(), PendulumSwingup(episode_length=T))
+
+
+@pytest.fixture(scope="module")
+def compiled(train):
+    traces = []
+
+    def counted_step(state):
+        traces.append(1)
+        return train.step(state)
+
+    return jax.jit(train.init), jax.jit(counted_step, donate_argnums=0), traces
+
+
+def _tree_allclose(a, b, **tol):
+    jax.tree.map(lambda x, y: np.testing.assert_allclose(x, y, **tol), a, b)
+
+
+@pytest.mark.timeout(420)
+def test_seed_phase_pretraining_and_planning(train, compiled):
+    init, step, traces = compiled
+    assert train.steps_per_call == K * E and train.seed_steps == SEED_STEPS
+    assert train.pretrain_updates == 75
+    state = init(jax.random.PRNGKey(0))
+    params0 = jax.device_get(state.agent.params)
+    history = []
+    for _ in range(6):
+        state, metrics = step(state)
+        history.append((jax.device_get(state.planner.prev_mean), jax.device_get(metrics)))
+        if len(history) == 1:
+            # Seed phase: no update touched the networks, the planner never ran.
+            _tree_allclose(jax.device_get(state.agent.params), params0, rtol=0, atol=0)
+    assert len(traces) == 1, "the train step must compile once"
+
+    planning = [float(m["planning"]) for _, m in history]
+    updates = [int(m["updates"]) for _, m in history]
+    assert planning == [0.0, 1.0, 1.0, 1.0, 1.0, 1.0]
+    # 75 pretraining updates at 100 transitions; then 1.5 per step (37, 38, 37, 38 per chunk).
+    assert updates == [0, 75, 112, 150, 187, 225]
+    assert int(history[1][1]["train/num_updates"]) == 75
+    np.testing.assert_allclose(float(state.update_debt), 0.0)
+    for prev_mean, _ in history[:2]:
+        assert np.all(prev_mean == 0.0)
+    assert np.any(history[2][0] != 0.0), "the planner's warm start must be set once it plans"
+
+    for i, (_, m) in enumerate(history, start=1):
+        assert int(m["env_steps"]) == i * K * E
+        assert int(m["buffer/transitions"]) == i * K * E
+        assert int(m["nonfinite_obs"]) == 0 and int(m["nonfinite_loss"]) == 0
+    # Each chunk of 25 steps ends an episode of 50 steps per env every other chunk.
+    assert [int(m["episode/count"]) for _, m in history] == [0, 2, 0, 2, 0, 2]
+    np.testing.assert_allclose(float(history[1][1]["episode/length"]), T)
+    assert np.isnan(float(history[0][1]["episode/return"]))
+    last = history[-1][1]
+    assert int(last["buffer/episodes"]) == 6
+    for name, value in last.items():
+        if name.startswith("train/"):
+            assert np.isfinite(value), name
+    # G = R_max: the best of the 6 recorded episode returns, each at most T.
+    assert 0.0 < float(last["r_max"]) <= T
+    assert float(last["return_ref"]) == float(last["r_max"])
+
+
+@pytest.mark.timeout(420)
+def test_vmapped_seeds_equal_single_runs(train, compiled):
+    """S = 2 seeds in one vmapped program equal two single runs with the same keys.
+
+    Compared tightly through the seed phase and the 75 pretraining updates (chunks 1-2). In
+    chunk 3 the planner acts: MPPI's top-k turns float reassociation under vmap into slightly
+    different actions that the pendulum then amplifies, so only the networks are compared.
+    """
+    init, step, _ = compiled
+    keys = jax.random.split(jax.random.PRNGKey(3), 2)
+    vstep = jax.jit(jax.vmap(train.step), donate_argnums=0)
+    vstate = jax.jit(jax.vmap(train.init))(keys)
+    vhist = []
+    for _ in range(3):
+        vstate, vmetrics = vstep(vstate)
+        vhist.append(jax.device_get((vstate.agent.params, vstate.buffer.obs, vmetrics)))
+    for s in range(2):
+        state = init(keys[s])
+        for chunk in range(3):
+            state, metrics = step(state)
+            single = jax.device_get((state.agent.params, state.buffer.obs, metrics))
+            batched = jax.tree.map(lambda x, s=s: x[s], vhist[chunk])
+            if chunk < 2:
+                _tree_allclose(batched, single, rtol=1e-4, atol=1e-5)
+            else:
+                _tree_allclose(batched[0], single[0], rtol=2e-3, atol=2e-4)
+                assert batched[2]["updates"] == single[2]["updates"]
+
+
+@pytest.mark.timeout(300)
+def test_evaluate(train, compiled):
+    init, step, _ = compiled
+    state = init(jax.random.PRNGKey(0))
+    for _ in range(3):
+        state, _ = step(state)
+    metrics = jax.device_get(jax.jit(train.evaluate)(state, jax.random.PRNGKey(1)))
+    for mode in ("planner", "policy"):
+        assert float(metrics[f"eval/{mode}_length"]) == T
+        ret = float(metrics[f"eval/{mode}_return"])
+        assert 0.0 <= ret <= T
+        # Success bar 150 is out of reach in 50 steps (reward <= 1 per step).
+        assert float(metrics[f"eval/{mode}_success"]) == 0.0
+    assert float(metrics["eval/r_max"]) == float(jax.device_get(state.buffer.r_max))
+
+
+def test_seed_steps_and_capacity():
+    tc = TrainConfig(num_envs=4, steps=500, buffer_size=3_000_000)
+    assert tc.resolved_seed_steps(1000) == 5000 * 4
+    assert tc.resolved_seed_steps(100) == 1000 * 4
+    assert dataclasses.replace(tc, seed_steps=101).resolved_seed_steps(1000) == 104
+    assert tc.capacity == 500 and tc.steps_per_call == 400
+    assert dataclasses.replace(tc, utd=0.5).pretrain_updates(100) == 2000
+    assert dataclasses.replace(tc, pretrain=False).pretrain_updates(100) == 0
+
+
+def test_config_validation_names_the_field():
+    with pytest.raises(ValueError, match=r"train\.utd=0"):
+        TrainConfig(utd=0)
+    with pytest.raises(ValueError, match=r"train\.num_envs=0"):
+        TrainConfig(num_envs=0)
+    cfg = Config(agent=AgentConfig.tiny(sirl=SirlConfig(g_source="target")))
+    with pytest.raises(ValueError, match="success bar"):
+        cfg.validate_for_task(episode_length=100, success_bar=None)
+    with pytest.raises(ValueError, match="episode_length"):
+        cfg.validate_for_task(episode_length=3, success_bar=1.0)
+
+
+def test_presets():
+    assert {"default", "smoke", "cpu"} <= set(PRESETS)
+    assert get_preset("default") == Config()
+    assert get_preset("smoke").agent.model_size == "tiny"
+    with pytest.raises(ValueError, match="already registered"):
+        register_preset("smoke", Config)
+    with pytest.raises(KeyError, match="valid presets"):
+        get_preset("nope")
+
+
+@pytest.mark.timeout(60)
+def test_target_return_ref_needs_a_success_bar():
+    cfg = _config()
+    cfg = dataclasses.replace(
+        cfg, agent=dataclasses.replace(cfg.agent, sirl=SirlConfig(g_source="target"))
+    )
+    tr = make_train(cfg, PendulumSwingup(episode_length=T))
+    assert tr.return_ref == "success_bar"
