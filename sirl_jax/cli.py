@@ -485,29 +485,32 @@ def train(args: TrainArgs) -> int:
     print(summary(config, spec, line, run_dir))
     check_buffer_fits(nbytes)
     run_dir.mkdir(parents=True, exist_ok=True)
-    runlog.write_json(run_dir / "config.json", runlog.config_to_dict(config))
-    runlog.record_versions(run_dir)
-    wandb_run = None
-    if args.wandb:
-        wandb_run = wandb.init(project=args.wandb_project, name=run_dir.name, dir=str(run_dir),
-                               config=runlog.config_to_dict(config), id=run_dir.name,
-                               resume="allow")  # fmt: skip
     ckpt = Checkpointer(run_dir / "checkpoints", max_to_keep=args.keep)
-    log = runlog.RunLog(run_dir, tensorboard=args.tensorboard, wandb_run=wandb_run)
     try:
         saved = None
-        if resuming:
+        if resuming:  # restore before writing anything, so a bad checkpoint changes nothing
             _check_resume_step(ckpt, args.resume_step)
             state, saved = restore_checkpoint(ckpt, trainer, key, args.resume_step)
-            log.drop_after(saved)
             print(f"resumed from env step {saved:,}")
         else:
             state = jax.jit(trainer.init)(key)
-        initial = int(jax.device_get(state.env_steps))
-        bar = prog.Progress(config.train.steps, initial, enabled=args.progress)
-        return _loop(_Run(config, args, trainer, ckpt, log, bar, saved), state)
+        runlog.write_json(run_dir / "config.json", runlog.config_to_dict(config))
+        runlog.record_versions(run_dir)
+        wandb_run = None
+        if args.wandb:
+            wandb_run = wandb.init(project=args.wandb_project, name=run_dir.name,
+                                   dir=str(run_dir), config=runlog.config_to_dict(config),
+                                   id=run_dir.name, resume="allow")  # fmt: skip
+        log = runlog.RunLog(run_dir, tensorboard=args.tensorboard, wandb_run=wandb_run)
+        try:
+            if saved is not None:
+                log.drop_after(saved)
+            initial = int(jax.device_get(state.env_steps))
+            bar = prog.Progress(config.train.steps, initial, enabled=args.progress)
+            return _loop(_Run(config, args, trainer, ckpt, log, bar, saved), state)
+        finally:
+            log.close()
     finally:
-        log.close()
         ckpt.close()
 
 

@@ -146,6 +146,14 @@ class Config:
             episode_length,
             f"> horizon + 1 ({self.agent.horizon + 1}) for task {self.train.task!r}",
         )
+        ring = self.train.capacity // self.train.num_envs
+        _check(
+            ring >= episode_length + 1,
+            "train.buffer_size",
+            self.train.buffer_size,
+            f"a capacity (min(buffer_size, steps)) of at least num_envs * (episode_length + 1)"
+            f" = {self.train.num_envs * (episode_length + 1)} so a whole episode fits per env",
+        )
         if self.agent.sirl.enabled and self.agent.sirl.g_source == "target":
             _check(
                 success_bar is not None,

@@ -36,7 +36,8 @@ BASE = [
 
 
 def _listing(root: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+    files = sorted(p for p in root.rglob("*") if p.is_file())
+    return {str(p.relative_to(root)): p.read_bytes() for p in files}
 
 
 def _rows(path: Path) -> list[dict]:
@@ -44,7 +45,8 @@ def _rows(path: Path) -> list[dict]:
 
 
 def _same(a, b) -> bool:
-    return a == b or (isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b))
+    both_nan = isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b)
+    return a == b or both_nan
 
 
 def _load_final(run_dir: Path):
@@ -296,7 +298,7 @@ def _toy_run(monkeypatch, tmp_path, toy: _ToyTrain, *flags: str) -> int:
     import sirl_jax.train
 
     monkeypatch.setattr(sirl_jax.train, "make_train", lambda config, env: toy)
-    argv = ["train", "--preset", "smoke", "--steps", "100", "--checkpoint-every", "20",
+    argv = ["train", "--preset", "smoke", "--steps", "2000", "--checkpoint-every", "20",
             "--eval-every", "0", "--log-every", "10", "--no-progress", "--no-tensorboard",
             "--run-dir", str(tmp_path / "run"), *flags]  # fmt: skip
     return cli.main(argv)

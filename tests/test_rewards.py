@@ -50,7 +50,9 @@ def test_tolerance_linear_value_at_margin():
     close(R.tolerance(5.0, (0, 1), margin=2.0, sigmoid="linear", value_at_margin=0.5), 0.0)
 
 
-@pytest.mark.parametrize("x, expected", [(5.0, 0.75), (-5.0, 0.75), (10.0, 0.0), (-20, 0.0), (0, 1)])
+@pytest.mark.parametrize(
+    "x, expected", [(5.0, 0.75), (-5.0, 0.75), (10.0, 0.0), (-20, 0.0), (0, 1)]
+)
 def test_tolerance_quadratic(x, expected):
     close(R.tolerance(x, margin=10.0, sigmoid="quadratic", value_at_margin=0.0), expected)
 

@@ -1,10 +1,10 @@
 """The 14 HumanoidBench locomotion tasks: registry, scene geometry, and batched rollouts.
 
 Each rollout test compiles one program per task, `reset` then `EPISODE` + `EXTRA` `VecEnv.step`s
-in a `lax.scan` over E = 4 envs, with the `mjx.Model` as a jit argument. It runs twice: with the
-normal model under the action that holds the keyframe pose (the robot stands for the whole
-short episode, which must end by truncation at exactly `EPISODE` steps), and with a limp model
-(every actuator's gain and bias zeroed), where the robot collapses and every task with a
+in a `lax.scan` over E = 4 envs, with the `mjx.Model` as a jit argument, and runs it on two
+models: without gravity under the action that holds the keyframe pose (nothing can fall, so
+every episode must end by truncation at exactly `EPISODE` steps), and limp (every actuator's
+gain and bias zeroed, normal gravity), where the robot collapses and every task with a
 termination must terminate. Compiles dominate (about a minute each on 2 cores), so CI runs a
 representative subset and the rest is marked slow.
 """
@@ -25,8 +25,8 @@ from sirl_jax.envs.tasks.obstacles import maze_block_centres, pole_positions
 from sirl_jax.envs.tasks.terrain import slide_boxes, stair_treads
 
 E = 4
-EPISODE = 40  # a short time limit, so truncation shows up in a short rollout
-EXTRA = 40
+EPISODE = 100  # a short time limit (2 s), long enough for a limp robot to collapse
+EXTRA = 20
 NEVER_TERMINATE = ("reach", "crawl")
 OBS = {
     "h1hand": {"reach": 157, "sit_hard": 164, "balance_simple": 164, "balance_hard": 177},
@@ -91,7 +91,8 @@ def test_scene_geometry():
     assert len(treads) == 9
     assert max(h for _, h in treads) == pytest.approx(0.9)
     assert min(x for x, _ in treads) - 0.3 == pytest.approx(3.2 - 2.7)
-    for (pos, size, quat), (x_lo, x_hi) in zip(slide_boxes(0.3), ((0.3, 5.3), (5.3, 10.3))):
+    spans = ((0.3, 5.3), (5.3, 10.3))
+    for (pos, size, quat), (x_lo, x_hi) in zip(slide_boxes(0.3), spans, strict=True):
         # the two ends of each box's top face lie on the prism's vertices
         w, _, qy, _ = quat
         angle = 2 * math.atan2(qy, w)
@@ -106,6 +107,11 @@ def test_scene_geometry():
 
 
 # -- batched rollouts --------------------------------------------------------------------------
+def _weightless(mx):
+    """The model without gravity: a robot holding its pose cannot fall."""
+    return mx.replace(opt=mx.opt.replace(gravity=jnp.zeros_like(mx.opt.gravity)))
+
+
 def _limp(mx):
     """The model with every actuator's gain and bias zeroed: no actuator force at all."""
     return mx.replace(
@@ -149,7 +155,7 @@ _COMPILED: dict[str, tuple] = {}
 
 @pytest.fixture(scope="module")
 def rollouts():
-    """task id -> (env, normal run, limp run); one compile per task, shared by the tests."""
+    """task id -> (env, weightless holding run, limp run); one compile per task, shared."""
 
     def get(task_id):
         if task_id not in _COMPILED:
@@ -157,7 +163,7 @@ def rollouts():
             run = _rollout(env)
             key = jax.random.PRNGKey(0)
             hold = jnp.asarray(env.robot.keyframe_action)
-            normal = jax.device_get(run(env.mx, key, hold))
+            normal = jax.device_get(run(_weightless(env.mx), key, hold))
             limp = jax.device_get(run(_limp(env.mx), key, jnp.zeros(env.action_size)))
             _COMPILED[task_id] = (env, normal, limp)
         return _COMPILED[task_id]
@@ -187,11 +193,9 @@ def test_rollout(rollouts, task_id):
     assert set(hold["metrics"]) == set(env.metric_names())
     _check_bookkeeping(hold)
     _check_bookkeeping(limp)
-    # Holding the keyframe pose: no termination within the short episode (balance excepted: the
-    # board tips), so every env is truncated at exactly EPISODE steps.
-    if not name.startswith("balance"):
-        assert not hold["terminated"][:EPISODE].any()
-        assert hold["truncated"][EPISODE - 1].all()
+    # Weightless, holding the keyframe pose: every env is truncated at exactly EPISODE steps.
+    assert not hold["terminated"].any()
+    assert hold["truncated"][EPISODE - 1].all() and not hold["truncated"][: EPISODE - 1].any()
     # Limp robot: it collapses and terminates, unless the task never terminates.
     if name in NEVER_TERMINATE:
         assert not limp["terminated"].any()

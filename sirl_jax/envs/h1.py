@@ -165,8 +165,11 @@ class Robot:
     """
 
     def __init__(self, model: mujoco.MjModel):
-        self.variant = "h1hand" if mujoco.mj_name2id(
-            model, mujoco.mjtObj.mjOBJ_JOINT, "lh_WRJ2") >= 0 else "h1"
+        self.variant = (
+            "h1hand"
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "lh_WRJ2") >= 0
+            else "h1"
+        )
         joints = JOINT_NAMES if self.variant == "h1hand" else H1_JOINT_NAMES
         actuators = ACTUATOR_NAMES if self.variant == "h1hand" else H1_ACTUATOR_NAMES
         if model.jnt_type[0] != mujoco.mjtJoint.mjJNT_FREE or model.joint(0).name != "free_base":
@@ -249,8 +252,9 @@ class Robot:
         return jnp.concatenate([d.qpos[self.qpos_slice], d.qvel[self.qvel_slice]])
 
 
-def make_control_step(n_substeps: int = N_SUBSTEPS) -> Callable[[mjx.Model, mjx.Data, jax.Array],
-                                                                  mjx.Data]:
+def make_control_step(
+    n_substeps: int = N_SUBSTEPS,
+) -> Callable[[mjx.Model, mjx.Data, jax.Array], mjx.Data]:
     """Returns `step(mx, d, ctrl) -> d`: hold `ctrl` [nu] for `n_substeps` `mjx.step` calls
     (a `lax.scan`), as HumanoidBench's `do_simulation`."""
 
@@ -267,6 +271,11 @@ def keyframe_data(model: mujoco.MjModel, mx: mjx.Model, key: str = "stand") -> m
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, _id(model, mujoco.mjtObj.mjOBJ_KEY, key))
     d = mjx.make_data(mx)
-    d = d.replace(qpos=jnp.asarray(data.qpos, d.qpos.dtype), qvel=jnp.asarray(data.qvel, d.qvel.dtype),
-                  ctrl=jnp.asarray(data.ctrl, d.ctrl.dtype))
-    return mjx.forward(mx, d)
+    d = d.replace(
+        qpos=jnp.asarray(data.qpos, d.qpos.dtype),
+        qvel=jnp.asarray(data.qvel, d.qvel.dtype),
+        ctrl=jnp.asarray(data.ctrl, d.ctrl.dtype),
+    )
+    # jit-compiled forward: every leaf comes back as a device array, so a jitted step sees the
+    # same argument types on its first and later calls (no second compile).
+    return jax.jit(mjx.forward)(mx, d)

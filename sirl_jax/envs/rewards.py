@@ -1,4 +1,4 @@
-"""dm_control's `rewards.tolerance` in JAX, and the reward terms HumanoidBench's locomotion tasks share.
+"""dm_control's `rewards.tolerance` in JAX, and the terms HumanoidBench's locomotion rewards share.
 
 Every function is pure and jittable; bounds, margins and sigmoids are static Python floats and
 strings (they are constants of each task), the measured quantities are arrays. Constants and
@@ -22,7 +22,7 @@ _SIGMOIDS = ("gaussian", "linear", "quadratic")
 
 
 def _sigmoid(d: jax.Array, value_at_margin: float, sigmoid: str) -> jax.Array:
-    """dm_control `_sigmoids`: maps a normalised distance d >= 0 to (0, 1], value_at_margin at d=1."""
+    """dm_control `_sigmoids`: normalised distance d >= 0 -> (0, 1], value_at_margin at d = 1."""
     if sigmoid == "gaussian":
         if not 0.0 < value_at_margin < 1.0:
             raise ValueError(
@@ -31,7 +31,9 @@ def _sigmoid(d: jax.Array, value_at_margin: float, sigmoid: str) -> jax.Array:
         scale = math.sqrt(-2.0 * math.log(value_at_margin))
         return jnp.exp(-0.5 * (d * scale) ** 2)
     if not 0.0 <= value_at_margin < 1.0:
-        raise ValueError(f"{sigmoid} tolerance needs 0 <= value_at_margin < 1, got {value_at_margin}")
+        raise ValueError(
+            f"{sigmoid} tolerance needs 0 <= value_at_margin < 1, got {value_at_margin}"
+        )
     if sigmoid == "linear":
         scaled = d * (1.0 - value_at_margin)
         return jnp.where(jnp.abs(scaled) < 1.0, 1.0 - scaled, 0.0)

@@ -80,6 +80,8 @@ for _row in LOCOMOTION:
                 episode_length=_row.episode_length,
                 success_bar=_row.success_bar,
                 aliases=(_row.name,) if _variant == "h1hand" else (),
-                description=f"HumanoidBench {_row.name} ({_variant}); terminates: {_row.termination}",
+                description=(
+                    f"HumanoidBench {_row.name} ({_variant}); terminates: {_row.termination}"
+                ),
             )
         )

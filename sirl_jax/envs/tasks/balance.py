@@ -10,7 +10,7 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import ALL_GROUPS, BIT_OBJECT, Task, geom_mask, set_contact_bits
+from sirl_jax.envs.humanoid import BIT_OBJECT, Task, geom_mask, set_contact_bits
 from sirl_jax.envs.tasks.common import fallen, robot_groups
 
 BALANCE_ROOT = (-0.1, 0.0, 1.38)
@@ -45,14 +45,18 @@ class BalanceTask(Task):
 
     def __init__(self, name: str):
         if name not in ("balance_simple", "balance_hard"):
-            raise ValueError(f"unknown balance task {name!r}; allowed: 'balance_simple', 'balance_hard'")
+            raise ValueError(
+                f"unknown balance task {name!r}; allowed: 'balance_simple', 'balance_hard'"
+            )
         self.name = name
         self.free_pivot = name == "balance_hard"
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         groups = robot_groups(variant)
-        standing_on = set_contact_bits(spec, groups, ("feet", "legs"))
-        everything = set_contact_bits(spec, groups, ALL_GROUPS)
+        # The board carries the feet; the sphere under it can only be reached by the feet and
+        # legs before the root drops below 0.8 m (itself a termination).
+        standing_on = set_contact_bits(spec, groups, ("feet",))
+        everything = set_contact_bits(spec, groups, ("feet", "legs"))
         board = spec.worldbody.add_body(name="stand_board", pos=(0, 0, BOARD_Z))
         board.add_freejoint(name="free_stand_board")
         # Board: robot feet/legs, the floor (contype 1) and the pivot (BIT_OBJECT).
@@ -74,7 +78,8 @@ class BalanceTask(Task):
         def gid(name):
             return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
 
-        floor, board, sphere = gid("floor"), gid("stand_board_collision"), gid("pivot_sphere_collision")
+        floor, board = gid("floor"), gid("stand_board_collision")
+        sphere = gid("pivot_sphere_collision")
         self._sphere = jnp.asarray(geom_mask(model, [sphere]))
         self._not_sphere = ~self._sphere
         self._floor = jnp.asarray(geom_mask(model, [floor]))
@@ -86,7 +91,7 @@ class BalanceTask(Task):
             robot.com_velocity(data),
         )  # fmt: skip
         dist, geom = data.contact.dist, data.contact.geom
-        bad_contact = R.any_contact(dist, geom, self._sphere, self._not_floor_board) | R.any_contact(
-            dist, geom, self._floor, self._not_sphere
-        )
+        sphere_bad = R.any_contact(dist, geom, self._sphere, self._not_floor_board)
+        floor_bad = R.any_contact(dist, geom, self._floor, self._not_sphere)
+        bad_contact = sphere_bad | floor_bad
         return reward, fallen(data.qpos[2], 0.8) | bad_contact, task_state, terms

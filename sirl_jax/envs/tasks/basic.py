@@ -12,7 +12,7 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, add_static_geom, set_contact_bits
+from sirl_jax.envs.humanoid import Task, add_static_geom, set_contact_bits, set_max_geom_pairs
 from sirl_jax.envs.tasks.common import robot_groups
 
 
@@ -129,7 +129,9 @@ class CrawlTask(Task):
     """Crawl through a 16 m tunnel (ceiling underside z 1.15, walls at y +-1.15); no termination."""
 
     name = "crawl"
-    metric_names = ("small_control", "move", "crawling", "crawling_head", "pelvis_quat", "in_tunnel")
+    metric_names = (
+        "small_control", "move", "crawling", "crawling_head", "pelvis_quat", "in_tunnel",
+    )  # fmt: skip
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         # Tunnel body at x 2.2 in HumanoidBench; its three boxes, in world coordinates.
@@ -141,6 +143,7 @@ class CrawlTask(Task):
             ((10.2, 0.0, 1.35), (8.0, 1.15, 0.2)),
         ):
             add_static_geom(spec, bits, pos=pos, size=size, rgba=(0.5, 0.5, 0.5, 0.3))
+        set_max_geom_pairs(spec, 4)
 
     def bind(self, model, robot) -> None:
         self._pelvis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
@@ -160,7 +163,9 @@ class ReachTask(Task):
     """Reach a random goal with the left hand; the goal is the task state; no termination."""
 
     name = "reach"
-    metric_names = ("hand_dist", "healthy_reward", "motion_penalty", "reward_close", "reward_success")
+    metric_names = (
+        "hand_dist", "healthy_reward", "motion_penalty", "reward_close", "reward_success",
+    )  # fmt: skip
     extra_obs_size = 6
     goal_low = (-2.0, -2.0, 0.2)
     goal_high = (2.0, 2.0, 2.0)

@@ -8,13 +8,16 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import ALL_GROUPS, Task, set_contact_bits
+from sirl_jax.envs.humanoid import Task, set_contact_bits, set_max_geom_pairs
 from sirl_jax.envs.tasks.common import fallen, robot_groups
 
 CHAIR_POS = (-0.25, 0.0, 0.0)
 # HumanoidBench's chair: massless collision boxes; the mass (15.7 kg) comes from the visual
 # boxes at density 1000. (pos, half size) in the chair frame.
-_CHAIR_COLLISION = (((-0.23, 0.0, 0.65), (0.02, 0.21, 0.2)), ((0.0, 0.0, 0.2375), (0.21, 0.21, 0.2375)))
+_CHAIR_COLLISION = (
+    ((-0.23, 0.0, 0.65), (0.02, 0.21, 0.2)),
+    ((0.0, 0.0, 0.2375), (0.21, 0.21, 0.2375)),
+)
 _CHAIR_VISUAL = (
     ((0.19, 0.19, 0.225), (0.02, 0.02, 0.225)),
     ((0.19, -0.19, 0.225), (0.02, 0.02, 0.225)),
@@ -40,7 +43,8 @@ def sit_reward(
     sit = (0.5 sitting + 0.5 on_chair) * upright_s * posture,
     sitting = tol(root_z, (0.68, 0.72), 0.2),
     on_chair = tol(root_x - chair_x, (-0.19, 0.19), 0.2) * tol(root_y - chair_y, (0, 0), 0.1),
-    posture = tol(head_z - imu_z, (0.35, 0.45), 0.3), upright_s = tol(zz, (0.95, inf), 0.9, linear, 0).
+    posture = tol(head_z - imu_z, (0.35, 0.45), 0.3),
+    upright_s = tol(zz, (0.95, inf), 0.9, linear, 0).
 
     Args:
       root: [3] qpos[0:3]. chair_xy: [2] chair body position.
@@ -91,7 +95,9 @@ class SitTask(Task):
         self.free = name == "sit_hard"
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        bits = set_contact_bits(spec, robot_groups(variant), ALL_GROUPS)
+        # The feet stay on the floor in front of the seat; legs, body and arms touch the chair.
+        bits = set_contact_bits(spec, robot_groups(variant), ("legs", "body", "arms"))
+        set_max_geom_pairs(spec, 4)
         chair = spec.worldbody.add_body(name="chair", pos=CHAIR_POS)
         if self.free:
             chair.add_freejoint(name="free_chair")

@@ -1,0 +1,168 @@
+"""Throughput of the H1 + Shadow hands model: MJX on CPU vs MuJoCo C, measured side by side.
+
+One control step = 10 physics steps (50 Hz). Columns:
+  MJX per-call: `jit(vmap(control_step))` called once per control step from Python.
+  MJX scan:     `jit` of a `lax.scan` over CHUNK control steps of `vmap(control_step)`.
+  MuJoCo C:     one thread (`mj_step` loop), and `mujoco.rollout` on 2 threads with E envs.
+Also: compile time of one control step (E=1) and bytes of one env's `mjx.Data`.
+Actions are small smooth perturbations of the keyframe-holding action (the robot stands, so
+contacts stay realistic for locomotion).
+
+Run: .venv/bin/python -m experiments.bench.bench_robot [--envs 1 16 64 256] [--contacts locomotion]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import mjx, rollout
+
+from sirl_jax.compile_cache import enable_compilation_cache
+from sirl_jax.envs import h1
+
+CHUNK = 20  # control steps per jitted scan
+
+
+def _actions(robot: h1.Robot, n_steps: int, n_envs: int) -> np.ndarray:
+    """[T, E, A] smooth small actions around the keyframe-holding action."""
+    t = np.arange(n_steps)[:, None, None] * h1.CONTROL_DT
+    phase = np.random.default_rng(0).uniform(0, 2 * np.pi, (1, n_envs, robot.nu))
+    a = robot.keyframe_action[None, None] + 0.05 * np.sin(2 * np.pi * t + phase)
+    return np.clip(a, -1, 1).astype(np.float32)
+
+
+def _timed(fn, repeats: int) -> float:
+    """Median seconds of fn() over repeats (fn must block)."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def bench_mjx(model, robot, n_envs: int, mode: str, repeats: int) -> tuple[float, float]:
+    """Returns (control steps/s summed over envs, first-call seconds incl. compile)."""
+    mx = mjx.put_model(model)
+    d0 = h1.keyframe_data(model, mx)
+    batch = jax.tree.map(lambda x: jnp.broadcast_to(x, (n_envs, *x.shape)), d0)
+    stepper = jax.vmap(h1.make_control_step(), in_axes=(None, 0, 0))
+    ctrls = robot.action_to_ctrl(jnp.asarray(_actions(robot, CHUNK, n_envs)))
+    if mode == "per-call":
+        step = jax.jit(lambda d, c: stepper(mx, d, c))
+
+        def run(d):
+            for t in range(CHUNK):
+                d = step(d, ctrls[t])
+            return jax.block_until_ready(d)
+    else:
+
+        @jax.jit
+        def chunk(d, ctrls):
+            return jax.lax.scan(lambda d, c: (stepper(mx, d, c), None), d, ctrls)[0]
+
+        def run(d):
+            return jax.block_until_ready(chunk(d, ctrls))
+
+    t0 = time.perf_counter()
+    run(batch)
+    first = time.perf_counter() - t0
+    seconds = _timed(lambda: run(batch), repeats)
+    return CHUNK * n_envs / seconds, first
+
+
+def compile_seconds(model) -> float:
+    """Cold compile time (persistent cache off) of one jitted control step, E = 1."""
+    mx = mjx.put_model(model)
+    d0 = h1.keyframe_data(model, mx)
+    stepper = h1.make_control_step()
+    step = jax.jit(lambda d, c: stepper(mx, d, c))
+    jax.config.update("jax_enable_compilation_cache", False)
+    try:
+        t0 = time.perf_counter()
+        step.lower(d0, d0.ctrl).compile()
+        return time.perf_counter() - t0
+    finally:
+        jax.config.update("jax_enable_compilation_cache", True)
+
+
+def bench_c_single(model, robot, n_steps: int = 500) -> float:
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    ctrls = np.asarray(robot.action_to_ctrl(jnp.asarray(_actions(robot, n_steps, 1))))[:, 0]
+    t0 = time.perf_counter()
+    for c in ctrls:
+        data.ctrl[:] = c
+        mujoco.mj_step(model, data, nstep=h1.N_SUBSTEPS)
+    return n_steps / (time.perf_counter() - t0)
+
+
+def bench_c_rollout(model, robot, n_envs: int, n_steps: int = 100, threads: int = 2) -> float:
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.zeros(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state, spec)
+    init = np.repeat(state[None], n_envs, axis=0)
+    ctrl = np.asarray(robot.action_to_ctrl(jnp.asarray(_actions(robot, n_steps, n_envs))))
+    ctrl = np.repeat(ctrl.transpose(1, 0, 2), h1.N_SUBSTEPS, axis=1).astype(np.float64)
+    datas = [mujoco.MjData(model) for _ in range(threads)]
+    with rollout.Rollout(nthread=threads) as runner:
+        runner.rollout(model, datas, init[:1], ctrl[:1, :10])  # warm the pool
+        t0 = time.perf_counter()
+        runner.rollout(model, datas, init, ctrl)
+        return n_envs * n_steps / (time.perf_counter() - t0)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--envs", type=int, nargs="*", default=[1, 16, 64, 256])
+    parser.add_argument("--modes", nargs="*", default=["per-call", "scan"])
+    parser.add_argument("--variant", default="h1hand", choices=sorted(h1.VARIANTS))
+    parser.add_argument("--contacts", default="locomotion", choices=h1.CONTACT_PROFILES)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--skip-compile", action="store_true", help="skip the cold compile")
+    args = parser.parse_args()
+    enable_compilation_cache()
+    model = h1.load_model(args.variant, args.contacts)
+    robot = h1.Robot(model)
+    mx = mjx.put_model(model)
+    d0 = h1.keyframe_data(model, mx)
+    nbytes = sum(x.nbytes for x in jax.tree.leaves(d0) if hasattr(x, "nbytes"))
+    c1 = bench_c_single(model, robot)
+    print(
+        f"model {args.variant}/{args.contacts}: nq {model.nq} nv {model.nv} nu {model.nu}, "
+        f"contact slots {d0.contact.dist.shape[0]}, solver {model.opt.iterations}/"
+        f"{model.opt.ls_iterations}, mjx.Data {nbytes / 1024:.1f} KiB per env"
+    )
+    print(f"MuJoCo C, 1 thread: {c1:.0f} control steps/s")
+    if not args.skip_compile:
+        print(f"cold compile of one control step (E=1): {compile_seconds(model):.0f} s")
+    print(
+        "\n| E | MJX per-call (steps/s) | MJX scan (steps/s) | C rollout 2 threads | "
+        "MJX best / C 1 thread | first call (s) |"
+    )
+    print("|---|---|---|---|---|---|")
+    for n_envs in args.envs:
+        row, firsts = {}, []
+        for mode in args.modes:
+            rate, first = bench_mjx(model, robot, n_envs, mode, args.repeats)
+            row[mode] = rate
+            firsts.append(f"{first:.0f}")
+        roll = bench_c_rollout(model, robot, n_envs)
+        best = max(row.values())
+        print(
+            f"| {n_envs} | {row.get('per-call', float('nan')):.0f} | "
+            f"{row.get('scan', float('nan')):.0f} | {roll:.0f} | {best / c1:.2f} | "
+            f"{'/'.join(firsts)} |",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
