@@ -21,6 +21,11 @@ SPEC_COUNTS = {
 }
 
 
+def _init(cfg, obs=20, act=6):
+    """Jitted init (one compile instead of one per eager op)."""
+    return jax.jit(lambda k: init_params(cfg, obs, act, k))(jax.random.PRNGKey(0))
+
+
 @pytest.mark.timeout(120)
 @pytest.mark.parametrize("size", list(SPEC_COUNTS))
 def test_param_counts_match_spec(size):
@@ -58,7 +63,7 @@ def test_normed_linear_matches_manual():
 @pytest.mark.timeout(120)
 def test_init_statistics_and_zero_heads():
     cfg = AgentConfig.tiny(mlp_dim=256)
-    params = init_params(cfg, 20, 6, jax.random.PRNGKey(0))
+    params = _init(cfg)
     k = params["dynamics"]["NormedLinear_0"]["Dense_0"]["kernel"]
     assert float(jnp.std(k)) == pytest.approx(0.02, rel=0.05)
     np.testing.assert_array_equal(params["dynamics"]["NormedLinear_0"]["Dense_0"]["bias"], 0.0)
@@ -72,17 +77,18 @@ def test_init_statistics_and_zero_heads():
     wm = make_world_model(cfg, 6)
     z = jax.random.uniform(jax.random.PRNGKey(2), (5, 32))
     a = jnp.zeros((5, 6))
+    r, q = jax.jit(
+        lambda p: (wm.reward(p, z, a), wm.q_pair(p["qs"], z, a, jax.random.PRNGKey(3), "avg"))
+    )(params)
     # Uniform softmax over symmetric bins: 0 up to float32 rounding of the bin centres.
-    np.testing.assert_allclose(wm.reward(params, z, a), 0.0, atol=1e-5)
-    np.testing.assert_allclose(
-        wm.q_pair(params["qs"], z, a, jax.random.PRNGKey(3), "avg"), 0.0, atol=1e-5
-    )
+    np.testing.assert_allclose(r, 0.0, atol=1e-5)
+    np.testing.assert_allclose(q, 0.0, atol=1e-5)
 
 
 @pytest.mark.timeout(120)
 def test_policy_bounds_and_log_prob():
     cfg = AgentConfig.tiny()
-    params = init_params(cfg, 20, 6, jax.random.PRNGKey(0))
+    params = _init(cfg)
     params["policy"]["Dense_0"]["bias"] = (
         params["policy"]["Dense_0"]["bias"]
         .at[6:]
@@ -90,7 +96,7 @@ def test_policy_bounds_and_log_prob():
     )
     wm = make_world_model(cfg, 6)
     z = jnp.zeros((1, 32))
-    out = wm.pi(params, z, jax.random.PRNGKey(4))
+    out = jax.jit(wm.pi)(params, z, jax.random.PRNGKey(4))
     assert float(out.log_std.min()) >= -10.0 and float(out.log_std.max()) <= 2.0
     np.testing.assert_allclose(out.log_std[0, :3], [-10.0, 2.0, -4.0], atol=1e-4)
     eps, ls = np.asarray(out.eps[0], np.float64), np.asarray(out.log_std[0], np.float64)
@@ -105,12 +111,13 @@ def test_policy_bounds_and_log_prob():
 @pytest.mark.timeout(120)
 def test_q_dropout_independent_per_member():
     cfg = AgentConfig.tiny(dropout=0.5)
-    params = init_params(cfg, 20, 6, jax.random.PRNGKey(0))
+    params = _init(cfg)
     # Give every member identical, non-zero weights: only dropout can make them differ.
     qs = jax.tree_util.tree_map(lambda p: jnp.broadcast_to(p[:1] + 0.1, p.shape), params["qs"])
     wm = make_world_model(cfg, 6)
     z, a = jnp.ones((4, 32)), jnp.ones((4, 6))
-    det = wm.q_logits(qs, z, a, None)
+    det, drop = jax.jit(
+        lambda q: (wm.q_logits(q, z, a, None), wm.q_logits(q, z, a, jax.random.PRNGKey(1)))
+    )(qs)
     np.testing.assert_allclose(det[0], det[1], atol=1e-6)
-    drop = wm.q_logits(qs, z, a, jax.random.PRNGKey(1))
     assert not np.allclose(drop[0], drop[1])

@@ -128,7 +128,7 @@ def test_fake_model_moves_toward_optimum_and_compiles_once():
 @pytest.mark.timeout(200)
 def test_real_agent_plan_and_policy_shapes():
     agent = make_agent(AgentConfig.tiny(), obs_size=7, action_size=A, episode_length=100)
-    state = agent.init(jax.random.PRNGKey(0))
+    state = jax.jit(agent.init)(jax.random.PRNGKey(0))
     pstate = agent.init_planner(2)
     obs = jax.random.normal(jax.random.PRNGKey(1), (2, 7))
     plan = jax.jit(agent.plan, static_argnames="eval_mode")

@@ -11,6 +11,7 @@ import pytest
 from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
 from sirl_jax.agent import losses as L
 from sirl_jax.agent.agent import polyak
+from sirl_jax.agent.networks import init_params
 from sirl_jax.agent.world_model import make_world_model
 from sirl_jax.types import Batch
 
@@ -42,7 +43,7 @@ def setup():
         "beta0": make_agent(_cfg(beta=0.0), O, A, T),
         "plain": make_agent(_cfg(enabled=False), O, A, T),
     }
-    state = agents["beta1"].init(jax.random.PRNGKey(0))
+    state = jax.jit(agents["beta1"].init)(jax.random.PRNGKey(0))
     updates = {k: jax.jit(a.update) for k, a in agents.items()}
     return agents, updates, state, _batch(jax.random.PRNGKey(1))
 
@@ -169,25 +170,34 @@ def test_sirl_weight_values():
 @pytest.mark.timeout(120)
 def test_bc_loglik_by_hand_and_per_dimension_scale():
     cfg = BASE
-    agent = make_agent(cfg, O, A, T)
-    params = agent.init(jax.random.PRNGKey(5)).params
     wm = make_world_model(cfg, A)
     z = jax.random.uniform(jax.random.PRNGKey(6), (2, 32))
     act = jnp.array([[0.3, -0.9, 0.0, 1.0], [-1.0, 0.5, 0.99, -0.2]])
-    out = wm.pi(params, z, jax.random.PRNGKey(7))
+    omega = jnp.array([0.5, 1.0])
+    mse = {
+        f: dataclasses.replace(cfg, sirl=SirlConfig(bc_form=f)) for f in ("mse_mean", "mse_sample")
+    }
+
+    @jax.jit
+    def run(key):
+        params = init_params(cfg, O, A, key)
+        out = wm.pi(params, z, jax.random.PRNGKey(7))
+        out2 = jax.tree_util.tree_map(lambda v: jnp.stack([v, v]), out)  # [H+1=2, ...]
+        loglik, _ = wm.pi_log_prob(params, z, act)
+        bc = {"loglik": L.bc_term(wm, cfg, params["policy"], z[None], None, act[None], omega)}
+        for f, c in mse.items():
+            bc[f] = L.bc_term(wm, c, params["policy"], z[None], out2, act[None], omega)
+        return out, loglik, bc
+
+    out, got, bc = run(jax.random.PRNGKey(5))
     mu, ls = np.asarray(out.mu, np.float64), np.asarray(out.log_std, np.float64)
     a = np.clip(np.asarray(act, np.float64), -1 + 1e-6, 1 - 1e-6)
     x = (np.arctanh(a) - mu) / np.exp(ls)
     ll = np.sum(-0.5 * x**2 - ls - 0.5 * math.log(2 * math.pi) - np.log(1 - a**2 + 1e-6), -1)
-    got, _ = wm.pi_log_prob(params, z, act)
     np.testing.assert_allclose(got, ll, rtol=2e-3)
-    omega = jnp.array([0.5, 1.0])
-    bc = L.bc_term(wm, cfg, params["policy"], z[None], None, act[None], omega)
-    np.testing.assert_allclose(bc[0], -np.array([0.5, 1.0]) * ll / A, rtol=2e-3)
+    # loglik form: -omega * log pi / A (mean over action dimensions).
+    np.testing.assert_allclose(bc["loglik"][0], -np.array([0.5, 1.0]) * ll / A, rtol=2e-3)
     # mse forms: omega * mean over action dims.
-    out2 = jax.tree_util.tree_map(lambda v: jnp.stack([v, v]), out)  # [H+1=2, ...]
     for form, ref in (("mse_mean", out.mean_action), ("mse_sample", out.action)):
-        c = dataclasses.replace(cfg, sirl=SirlConfig(bc_form=form))
-        bc = L.bc_term(wm, c, params["policy"], z[None], out2, act[None], omega)
         want = np.array([0.5, 1.0]) * np.mean((np.asarray(ref) - np.asarray(act)) ** 2, -1)
-        np.testing.assert_allclose(bc[0], want, rtol=1e-5)
+        np.testing.assert_allclose(bc[form][0], want, rtol=1e-5)

@@ -10,7 +10,8 @@ every chunk plans and updates):
   parts alone     the same work as separate jitted scans: env steps, MPPI plans, buffer adds,
                   buffer samples, updates on a fixed batch. overhead = fused / sum(parts) - 1.
   SIRL cost       `agent.update` with beta = 1 vs SirlConfig(enabled=False), same batch.
-Medians of `--repeats` timings; the machine is shared, so only compare rows of one run.
+Medians of `--repeats` rounds, timed round-robin; ratios are medians of per-round ratios.
+The machine is shared, so only compare rows of one run.
 """
 
 from __future__ import annotations
@@ -37,18 +38,22 @@ T = 50
 class Args:
     full: bool = True
     """Also time the reference 5M agent (E = 1, a few chunks)."""
-    repeats: int = 5
+    repeats: int = 7
     """Timed calls per row (median reported)."""
 
 
-def _median_time(fn, *args, repeats: int) -> float:
-    jax.block_until_ready(fn(*args))  # compile + warm
-    times = []
+def _timings(cases: dict, repeats: int) -> dict[str, list[float]]:
+    """Seconds per call of each `name: (fn, args)`, timed round-robin so that load changes on
+    a shared machine hit every case alike; ratios are then taken within a round."""
+    for fn, args in cases.values():
+        jax.block_until_ready(fn(*args))  # compile + warm
+    times = {name: [] for name in cases}
     for _ in range(repeats):
-        t = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
+        for name, (fn, args) in cases.items():
+            t = time.perf_counter()
+            jax.block_until_ready(fn(*args))
+            times[name].append(time.perf_counter() - t)
+    return times
 
 
 def _warm_state(train: Train):
@@ -124,25 +129,29 @@ def bench_config(name: str, agent_cfg: AgentConfig, e: int, k: int, repeats: int
     train = make_train(Config(agent=agent_cfg, train=train_cfg), PendulumSwingup(T))
     state, step = _warm_state(train)
     n = train.steps_per_call
-    fused = _median_time(step, state, repeats=repeats)
-    parts = {
-        part: _median_time(fn, *args, repeats=repeats)
-        for part, (fn, args) in _parts(train, state, k, e, round(e * train_cfg.utd)).items()
-    }
-    total = sum(parts.values())
+    cases = {"fused step": (step, (state,))}
+    cases.update(_parts(train, state, k, e, round(e * train_cfg.utd)))
+    times = _timings(cases, repeats)
+    med = {name: statistics.median(t) for name, t in times.items()}
+    parts = [name for name in times if name != "fused step"]
+    total = sum(med[p] for p in parts)
+    overhead = statistics.median(
+        f / sum(times[p][r] for p in parts) - 1 for r, f in enumerate(times["fused step"])
+    )
+    fused = med["fused step"]
     print(f"\n{name}: E={e}, K={k}, utd=1, B={agent_cfg.batch_size}, {n} transitions per call")
     print(f"| {'what':<16} | {'s per call':>10} | {'env steps/s':>11} | {'share':>6} |")
     print(f"|{'-' * 18}|{'-' * 12}|{'-' * 13}|{'-' * 8}|")
     print(f"| {'fused step':<16} | {fused:10.3f} | {n / fused:11.0f} | {'':>6} |")
-    for part, t in parts.items():
-        print(f"| {part:<16} | {t:10.3f} | {'':>11} | {t / total:6.1%} |")
+    for part in parts:
+        print(f"| {part:<16} | {med[part]:10.3f} | {'':>11} | {med[part] / total:6.1%} |")
     print(f"| {'sum of parts':<16} | {total:10.3f} | {n / total:11.0f} | {'':>6} |")
-    print(f"fused overhead vs sum of parts: {fused / total - 1:+.1%}")
+    print(f"fused overhead vs sum of parts (median of per-round ratios): {overhead:+.1%}")
 
 
 def bench_sirl(agent_cfg: AgentConfig, repeats: int, num_updates: int = 50) -> None:
     env = PendulumSwingup(T)
-    times = {}
+    cases = {}
     for label, sirl in (("beta=1", SirlConfig(beta=1.0)), ("disabled", SirlConfig(enabled=False))):
         cfg = dataclasses.replace(agent_cfg, sirl=sirl)
         agent = make_agent(cfg, env.observation_size, env.action_size, T)
@@ -164,13 +173,16 @@ def bench_sirl(agent_cfg: AgentConfig, repeats: int, num_updates: int = 50) -> N
 
             return jax.lax.fori_loop(0, num_updates, body, s)
 
-        times[label] = _median_time(run, agent.init(key), repeats=repeats) / num_updates
+        cases[label] = (run, (agent.init(key),))
+    times = _timings(cases, repeats)
+    pairs = zip(times["beta=1"], times["disabled"], strict=True)
+    ratio = statistics.median(x / y for x, y in pairs)
     print(f"\nSIRL term cost ({agent_cfg.model_size}, B={agent_cfg.batch_size}):")
     print("| update      | ms per update |")
     print("|-------------|---------------|")
     for label, t in times.items():
-        print(f"| {label:<11} | {t * 1e3:13.2f} |")
-    print(f"SIRL overhead: {times['beta=1'] / times['disabled'] - 1:+.1%}")
+        print(f"| {label:<11} | {statistics.median(t) / num_updates * 1e3:13.2f} |")
+    print(f"SIRL overhead (median of per-round ratios): {ratio - 1:+.1%}")
 
 
 def main(args: Args) -> None:
