@@ -279,7 +279,18 @@ def restore_checkpoint(ckpt: Checkpointer, train: Any, key: Any, step: int | Non
         print("note: the checkpoint has no replay buffer (--no-save-buffer); resuming with an "
               "empty one", file=sys.stderr)  # fmt: skip
         buffer = jax.jit(train.init)(key).buffer
-    return restored["state"].replace(buffer=buffer), step
+    return commit(restored["state"].replace(buffer=buffer)), step
+
+
+def commit(state: Any) -> Any:
+    """Commits every leaf to the default device.
+
+    A fresh `init` output is uncommitted and a restored one committed; jit compiles a program
+    per kind, so both paths commit to share one compiled (and cached) train step.
+    """
+    import jax
+
+    return jax.device_put(state, jax.devices()[0])
 
 
 class _StopOnSigint:
@@ -493,7 +504,7 @@ def train(args: TrainArgs) -> int:
             state, saved = restore_checkpoint(ckpt, trainer, key, args.resume_step)
             print(f"resumed from env step {saved:,}")
         else:
-            state = jax.jit(trainer.init)(key)
+            state = commit(jax.jit(trainer.init)(key))
         runlog.write_json(run_dir / "config.json", runlog.config_to_dict(config))
         runlog.record_versions(run_dir)
         wandb_run = None
@@ -545,7 +556,13 @@ def evaluate(args: EvalArgs) -> int:
 
 def tasks() -> int:
     """The `tasks` command: one line per registered task."""
-    from sirl_jax.envs import TASKS
+    import importlib
+    import importlib.util
+
+    from sirl_jax.envs import TASKS, classic  # noqa: F401  (classic registers `pendulum`)
+
+    if importlib.util.find_spec("sirl_jax.envs.tasks") is not None:
+        importlib.import_module("sirl_jax.envs.tasks")
 
     aliases: dict[str, list[str]] = {}
     for alias, target in TASKS.aliases().items():

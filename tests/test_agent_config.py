@@ -74,6 +74,7 @@ def test_derived_values_not_written_back():
         (dict(latent_dim=100), "latent_dim"),
         (dict(num_q=1), "num_q"),
         (dict(rho=0.0), "rho"),
+        (dict(plan_env_chunk=-1), "plan_env_chunk"),
     ],
 )
 def test_validation_names_field(kwargs, field):

@@ -89,7 +89,7 @@ def runs(tmp_path_factory):
             "steps_after_stop": steps_after_stop}  # fmt: skip
 
 
-@pytest.mark.timeout(420)
+@pytest.mark.timeout(600)
 def test_ctrl_c_then_resume_equals_uninterrupted_run(runs):
     assert runs["stopped"] == 0 and runs["resumed"] == 0
     assert runs["sent"] == [STOP_AT] and runs["steps_after_stop"] == [STOP_AT]

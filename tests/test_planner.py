@@ -140,3 +140,19 @@ def test_real_agent_plan_and_policy_shapes():
     a2, _ = act(state, obs, jax.random.PRNGKey(4))
     np.testing.assert_array_equal(a1, a2)  # eval: tanh(mu), no sampling
     assert not np.allclose(sample1, a1)
+
+
+@pytest.mark.timeout(120)
+def test_env_chunked_map_equals_vmap():
+    params = {"target": jnp.asarray(TARGET)}
+    obs = jax.random.normal(jax.random.PRNGKey(0), (4, A))
+    first = jnp.array([True, False, True, False])
+    out = []
+    for chunk in (0, 2):
+        cfg = AgentConfig.tiny(num_samples=64, num_elites=8, plan_env_chunk=chunk)
+        planner = make_planner(cfg, A, 0.9, 2, _fake_model())
+        state = planner.init(4)
+        state = state.replace(prev_mean=jnp.full_like(state.prev_mean, 0.2))
+        out.append(jax.jit(planner.plan)(params, state, obs, first, jax.random.PRNGKey(1)))
+    np.testing.assert_allclose(out[0][0], out[1][0], atol=1e-6)
+    np.testing.assert_allclose(out[0][1].prev_mean, out[1][1].prev_mean, atol=1e-6)

@@ -235,3 +235,18 @@ def test_mjx_step_agrees_with_mujoco_c(hand_model, mjx_setup):
     assert err.max() < 3e-2, err
     assert np.isfinite(np.asarray(robot.observation(d))).all()
     assert float(robot.pelvis_height(d)) > 0.8
+
+
+@pytest.mark.timeout(300)
+def test_mjx_open_loop_stand_falls_like_mujoco_c(hand_model, mjx_setup):
+    """Same open-loop stand as above, in MJX (reuses the compiled step): falls in 1.4-2.2 s."""
+    robot, mx, step = mjx_setup
+    d = h1.keyframe_data(hand_model, mx)
+    ctrl = robot.action_to_ctrl(jnp.asarray(robot.keyframe_action))
+    fell_at = np.inf
+    for t in range(int(3.0 / h1.CONTROL_DT)):
+        d = step(d, ctrl)
+        if float(robot.pelvis_height(d)) < 0.2:
+            fell_at = (t + 1) * h1.CONTROL_DT
+            break
+    assert 1.4 <= fell_at <= 2.2

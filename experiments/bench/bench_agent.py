@@ -8,6 +8,7 @@ the same sizes, the ratio of measured time to FLOPs / throughput, and compile ti
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import jax
@@ -110,22 +111,18 @@ def main() -> None:
     upd, c_upd = compile_timed(agent.update, state, batch, k)
     ms = time_calls(upd, (state, batch, k), args.reps)
     rows.append(("update B=256", ms, update_flops(cfg, O, A), matmul_gflops(H * B, Z, Z), c_upd))
+    mapped = make_agent(dataclasses.replace(cfg, plan_env_chunk=1), O, A, episode_length=1000)
     for E in args.envs:
         ps = agent.init_planner(E)
         obs = jax.random.normal(k, (E, O))
         first = jnp.zeros((E,), bool)
-        plan, c_plan = compile_timed(agent.plan, state, ps, obs, first, k, eval_mode=False)
-        ms = time_calls(plan, (state, ps, obs, first, k), args.reps)
-        flops = E * plan_flops(cfg, O, A, agent.iterations)
-        rows.append(
-            (
-                f"plan E={E}",
-                ms,
-                flops,
-                matmul_gflops(E * cfg.num_samples, Z + A, cfg.arch.mlp_dim),
-                c_plan,
-            )
-        )
+        variants = [("", agent)] + ([(" map", mapped)] if E > 1 else [])
+        for suffix, ag in variants:
+            plan, c_plan = compile_timed(ag.plan, state, ps, obs, first, k, eval_mode=False)
+            ms = time_calls(plan, (state, ps, obs, first, k), args.reps)
+            flops = E * plan_flops(cfg, O, A, agent.iterations)
+            gfs = matmul_gflops(E * cfg.num_samples, Z + A, cfg.arch.mlp_dim)
+            rows.append((f"plan E={E}{suffix}", ms, flops, gfs, c_plan))
     print(
         f"{'call':<14}{'ms/call':>10}{'GFLOP':>9}{'mm GFLOP/s':>12}{'mm ms':>9}"
         f"{'ratio':>7}{'compile s':>11}"
@@ -140,11 +137,12 @@ def main() -> None:
     if len(plans) > 1:
         e_min, e_max = min(args.envs), max(args.envs)
         per1 = plans[f"plan E={e_min}"] / e_min
-        perE = plans[f"plan E={e_max}"] / e_max
-        print(
-            f"plan ms per env: E={e_min} {per1:.1f}, E={e_max} {perE:.1f} "
-            f"(ratio {perE / per1:.2f}; <= 1 means batching costs <= E x one env)"
-        )
+        for name in (f"plan E={e_max}", f"plan E={e_max} map"):
+            perE = plans[name] / e_max
+            print(
+                f"plan ms per env: E={e_min} {per1:.1f}, {name} {perE:.1f} "
+                f"(ratio {perE / per1:.2f}; <= 1 means E envs cost <= E x one env)"
+            )
 
 
 if __name__ == "__main__":

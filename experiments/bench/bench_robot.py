@@ -26,6 +26,7 @@ from sirl_jax.compile_cache import enable_compilation_cache
 from sirl_jax.envs import h1
 
 CHUNK = 20  # control steps per jitted scan
+_EULERDAMP = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
 
 
 def _actions(robot: h1.Robot, n_steps: int, n_envs: int) -> np.ndarray:
@@ -125,11 +126,21 @@ def main() -> None:
     parser.add_argument("--modes", nargs="*", default=["per-call", "scan"])
     parser.add_argument("--variant", default="h1hand", choices=sorted(h1.VARIANTS))
     parser.add_argument("--contacts", default="locomotion", choices=h1.CONTACT_PROFILES)
+    parser.add_argument(
+        "--solver", default=None, help="override: iterations,ls_iterations,eulerdamp"
+    )
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--skip-compile", action="store_true", help="skip the cold compile")
     args = parser.parse_args()
     enable_compilation_cache()
     model = h1.load_model(args.variant, args.contacts)
+    if args.solver:
+        it, ls, eulerdamp = (int(x) for x in args.solver.split(","))
+        model.opt.iterations, model.opt.ls_iterations = it, ls
+        flag = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
+        model.opt.disableflags = (
+            model.opt.disableflags & ~flag if eulerdamp else model.opt.disableflags | flag
+        )
     robot = h1.Robot(model)
     mx = mjx.put_model(model)
     d0 = h1.keyframe_data(model, mx)
@@ -137,8 +148,10 @@ def main() -> None:
     c1 = bench_c_single(model, robot)
     print(
         f"model {args.variant}/{args.contacts}: nq {model.nq} nv {model.nv} nu {model.nu}, "
-        f"contact slots {d0.contact.dist.shape[0]}, solver {model.opt.iterations}/"
-        f"{model.opt.ls_iterations}, mjx.Data {nbytes / 1024:.1f} KiB per env"
+        f"contact slots {d0._impl.contact.dist.shape[0]}, solver {model.opt.iterations}/"
+        f"{model.opt.ls_iterations} eulerdamp "
+        f"{'off' if model.opt.disableflags & _EULERDAMP else 'on'}, "
+        f"mjx.Data {nbytes / 1024:.1f} KiB per env"
     )
     print(f"MuJoCo C, 1 thread: {c1:.0f} control steps/s")
     if not args.skip_compile:

@@ -1,9 +1,11 @@
 """Compile time and CPU throughput of every locomotion task, next to the bare robot.
 
-For each task: time to compile `VecEnv.reset` and `VecEnv.step` (E envs, jitted, the model as a
-jit argument), then control steps/s (E x calls / s) of the compiled step under uniform random
-actions, with auto-resets. The reference row "bare" is the robot on flat ground with a zero
-reward, so `ratio` is the task's cost of scene contacts and reward.
+For each task: the contact slots MJX allocates per env, the time to compile `VecEnv.reset` and
+`VecEnv.step` (E envs, jitted, the model as a jit argument; wall and process CPU seconds, the
+latter less sensitive to other jobs on the machine), then control steps/s (E x calls / s) of the
+compiled step under uniform random actions, with auto-resets. The reference row "bare" is the
+robot on flat ground with a zero reward, so `ratio` is the task's cost of scene contacts and
+reward.
 
     .venv/bin/python -m experiments.bench.bench_tasks [--variant h1hand] [--num-envs 64]
         [--calls 20] [--tasks walk,pole]
@@ -23,6 +25,13 @@ import jax.numpy as jnp
 import sirl_jax.envs.tasks as tasks
 from sirl_jax.envs.base import VecEnv
 from sirl_jax.envs.humanoid import HumanoidEnv, Task
+
+try:  # the contact slots MJX allocates per env (its collision driver's own count)
+    from mujoco.mjx._src.collision_driver import make_condim as mjx_contact_dims
+except ImportError:  # pragma: no cover - private MJX module moved
+
+    def mjx_contact_dims(model):
+        return []
 
 
 class BareTask(Task):
@@ -44,14 +53,14 @@ def bench(env: HumanoidEnv, num_envs: int, calls: int, seed: int = 0) -> dict[st
         return VecEnv(env.with_model(mx), num_envs).step(state, action)
 
     key = jax.random.PRNGKey(seed)
-    t0 = time.perf_counter()
+    c0, t0 = time.process_time(), time.perf_counter()
     reset_c = jax.jit(reset).lower(env.mx, key).compile()
-    t1 = time.perf_counter()
+    c1, t1 = time.process_time(), time.perf_counter()
     state = reset_c(env.mx, key)
     actions = jax.random.uniform(key, (calls, num_envs, env.action_size), minval=-1.0, maxval=1.0)
-    t2 = time.perf_counter()
+    c2, t2 = time.process_time(), time.perf_counter()
     step_c = jax.jit(step, donate_argnums=1).lower(env.mx, state, actions[0]).compile()
-    t3 = time.perf_counter()
+    c3, t3 = time.process_time(), time.perf_counter()
     state = step_c(env.mx, state, actions[0])  # warm-up
     jax.block_until_ready(state.obs)
     t4 = time.perf_counter()
@@ -62,6 +71,7 @@ def bench(env: HumanoidEnv, num_envs: int, calls: int, seed: int = 0) -> dict[st
     return {
         "reset_compile_s": t1 - t0,
         "step_compile_s": t3 - t2,
+        "compile_cpu_s": (c1 - c0) + (c3 - c2),
         "steps_per_s": num_envs * calls / (t5 - t4),
     }
 
@@ -81,19 +91,24 @@ def main() -> None:
     rows = {r.name: r for r in tasks.LOCOMOTION}
     print(f"variant {args.variant}, E = {args.num_envs}, {args.calls} timed calls, "
           f"backend {jax.default_backend()}")
-    header = f"{'task':<16}{'reset compile s':>16}{'step compile s':>16}{'steps/s':>10}{'ratio':>8}"
+    header = (f"{'task':<16}{'contacts':>9}{'reset compile s':>16}{'step compile s':>16}"
+              f"{'compile CPU s':>14}{'steps/s':>9}{'ratio':>7}")
     print(header)
     print("-" * len(header))
-    ref = bench(HumanoidEnv(BareTask(), args.variant), args.num_envs, args.calls)
-    print(f"{'bare':<16}{ref['reset_compile_s']:>16.1f}{ref['step_compile_s']:>16.1f}"
-          f"{ref['steps_per_s']:>10.0f}{1.0:>8.2f}", flush=True)
+
+    def report(name: str, env: HumanoidEnv, out: dict, ref_steps: float) -> None:
+        contacts = len(mjx_contact_dims(env.mj_model))
+        print(f"{name:<16}{contacts:>9}{out['reset_compile_s']:>16.1f}"
+              f"{out['step_compile_s']:>16.1f}{out['compile_cpu_s']:>14.1f}"
+              f"{out['steps_per_s']:>9.0f}{out['steps_per_s'] / ref_steps:>7.2f}", flush=True)
+
+    bare = HumanoidEnv(BareTask(), args.variant)
+    ref = bench(bare, args.num_envs, args.calls)
+    report("bare", bare, ref, ref["steps_per_s"])
     for name in chosen:
         row = rows[name]
         env = HumanoidEnv(row.task(), args.variant, success_bar=row.success_bar)
-        out = bench(env, args.num_envs, args.calls)
-        ratio = out["steps_per_s"] / ref["steps_per_s"]
-        print(f"{name:<16}{out['reset_compile_s']:>16.1f}{out['step_compile_s']:>16.1f}"
-              f"{out['steps_per_s']:>10.0f}{ratio:>8.2f}", flush=True)
+        report(name, env, bench(env, args.num_envs, args.calls), ref["steps_per_s"])
 
 
 if __name__ == "__main__":

@@ -161,9 +161,13 @@ def make_planner(
     def plan(params, state: PlannerState, obs, first, key, eval_mode: bool = False):
         """obs [E, O], first [E] bool -> (action [E, A], PlannerState). eval_mode is static."""
         keys = jax.random.split(key, obs.shape[0])
-        actions, means = jax.vmap(plan_one, in_axes=(None, 0, 0, 0, 0, None))(
-            params, state.prev_mean, first, obs, keys, eval_mode
-        )
+        one = lambda xs: plan_one(params, *xs, eval_mode)
+        xs = (state.prev_mean, first, obs, keys)
+        if cfg.plan_env_chunk > 0:
+            # Sequential over chunks of envs (a CPU option: keeps activations cache-sized).
+            actions, means = jax.lax.map(one, xs, batch_size=cfg.plan_env_chunk)
+        else:
+            actions, means = jax.vmap(one)(xs)
         return actions, PlannerState(prev_mean=means)
 
     return Planner(init, plan)
