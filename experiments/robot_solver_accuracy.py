@@ -81,9 +81,68 @@ def fall_time(qpos: np.ndarray) -> float:
     return float((below[0] + 1) * h1.CONTROL_DT) if below.size else float("inf")
 
 
+def with_self_collision(model: mujoco.MjModel) -> mujoco.MjModel:
+    """A copy whose robot colliders (hands included) also collide with each other."""
+    spec = h1.robot_spec("h1hand", "manipulation")
+    for geom in spec.geoms:
+        if geom.contype == h1.ROBOT_CONTYPE:
+            geom.contype = geom.conaffinity = h1.ROBOT_CONTYPE | h1.ROBOT_CONAFFINITY
+    for p in ("lh", "rh"):  # HumanoidBench's four excludes
+        side = "left" if p == "lh" else "right"
+        spec.add_exclude(bodyname1=f"{p}_wrist", bodyname2=f"{side}_elbow_link")
+        spec.add_exclude(bodyname1=f"{p}_thproximal", bodyname2=f"{p}_thmiddle")
+    out = spec.compile()
+    out.opt.iterations, out.opt.ls_iterations = model.opt.iterations, model.opt.ls_iterations
+    out.opt.disableflags = model.opt.disableflags
+    return out
+
+
+def random_episodes(model: mujoco.MjModel, n_episodes: int, seed: int = 0) -> tuple[float, float]:
+    """HumanoidBench random policy: U(-1, 1) actions, reset noise U(+-0.01) on qpos.
+
+    Returns (mean episode length in control steps until qpos[2] < 0.2 (cap 1000), fraction of
+    control steps that end with a robot-robot contact).
+    """
+    rng = np.random.default_rng(seed)
+    robot = h1.Robot(model)
+    low, high = np.asarray(robot.ctrl_low), np.asarray(robot.ctrl_high)
+    data = mujoco.MjData(model)
+    lengths, self_steps, steps = [], 0, 0
+    for _ in range(n_episodes):
+        mujoco.mj_resetDataKeyframe(model, data, 0)
+        data.qpos[:] += rng.uniform(-0.01, 0.01, model.nq)
+        length = 1000
+        for t in range(1000):
+            data.ctrl[:] = low + (rng.uniform(-1, 1, robot.nu) + 1) / 2 * (high - low)
+            mujoco.mj_step(model, data, nstep=h1.N_SUBSTEPS)
+            geoms = data.contact.geom[: data.ncon]
+            self_steps += bool(np.any(np.all(model.geom_bodyid[geoms] != 0, axis=1)))
+            steps += 1
+            if data.qpos[2] < 0.2:
+                length = t + 1
+                break
+        lengths.append(length)
+    return float(np.mean(lengths)), self_steps / steps
+
+
+def deviations(n_episodes: int) -> None:
+    """Self-collision off (ours) vs on, MuJoCo C, random actions (HumanoidBench walk: ~50-60)."""
+    base = h1.load_model("h1hand", "manipulation")
+    print("\nrandom-policy episodes (MuJoCo C, manipulation contacts, 1/5 solver as shipped)")
+    print("| self-collision | mean episode length | steps with robot-robot contact |")
+    print("|---|---|---|")
+    for name, model in (("off (shipped)", base), ("on", with_self_collision(base))):
+        length, frac = random_episodes(model, n_episodes)
+        print(f"| {name} | {length:.1f} | {100 * frac:.1f} % |")
+    ref = configured_model(100, 50, 1)
+    length, _ = random_episodes(ref, n_episodes)
+    print(f"| off, Newton 100/50 + eulerdamp (locomotion contacts) | {length:.1f} | - |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mjx", nargs="*", default=["1,5,0", "2,6,1"], help="it,ls,eulerdamp")
+    parser.add_argument("--episodes", type=int, default=30, help="random-policy episodes")
     args = parser.parse_args()
     enable_compilation_cache()
     robot = h1.Robot(h1.load_model("h1hand"))
@@ -111,6 +170,7 @@ def main() -> None:
             f"| {engine} | {it}/{ls} | {'on' if ed else 'off'} | {err:.2e} | {z_err:.2e} "
             f"| {fall_time(q_stand):.2f} |   ({time.perf_counter() - t0:.0f} s)"
         )
+    deviations(args.episodes)
 
 
 if __name__ == "__main__":

@@ -17,9 +17,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 from typing import Annotated, Any
@@ -28,7 +26,14 @@ import tyro
 
 from sirl_jax import progress as prog
 from sirl_jax import runlog
-from sirl_jax.checkpoint import Checkpointer, CheckpointError
+from sirl_jax.checkpoint import (
+    Checkpointer,
+    CheckpointError,
+    commit,
+    copy_state,
+    restore_state,
+    save_state,
+)
 from sirl_jax.config import Config, TrainConfig, get_preset
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_ABORTED = 0, 1, 2, 130
@@ -210,134 +215,10 @@ def load_task(task: str):
     return spec, spec.factory()
 
 
-def _scalars(tree: Any, prefix: str = "") -> dict[str, float]:
-    """Flattens a (nested) metrics dict of host arrays to {name: float} (mean if not scalar)."""
-    out = {}
-    for name, value in tree.items():
-        if isinstance(value, dict):
-            out.update(_scalars(value, f"{prefix}{name}/"))
-        else:
-            import numpy as np
-
-            out[prefix + name] = float(np.mean(value))
-    return out
-
-
 def _tree_nbytes(tree: Any) -> int:
     import jax
 
     return sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(tree))
-
-
-def copy_state(state: Any) -> Any:
-    """A device copy of `state` (jit it): the pre-chunk backup the donated step cannot keep."""
-    import jax
-    import jax.numpy as jnp
-
-    return jax.tree.map(jnp.copy, state)
-
-
-def save_checkpoint(ckpt: Checkpointer, state: Any, save_buffer: bool) -> int:
-    """Saves `state` at its env step (the buffer only if `save_buffer`); no-op if it exists."""
-    import jax
-
-    step, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
-    if step not in ckpt.steps():
-        items = {"state": state.replace(buffer=None)}
-        if save_buffer:
-            items["buffer"] = state.buffer
-        meta = {"env_steps": step, "updates": updates, "save_buffer": save_buffer,
-                "time": time.time()}  # fmt: skip
-        ckpt.save(step, items, meta)
-    return step
-
-
-def restore_checkpoint(ckpt: Checkpointer, train: Any, key: Any, step: int | None = None):
-    """(state, step) from checkpoint `step` (default latest); an empty buffer if none saved."""
-    import jax
-
-    steps = ckpt.steps()
-    if not steps:
-        raise CheckpointError(f"no checkpoint in {ckpt.directory}: nothing to resume")
-    step = steps[-1] if step is None else step
-    if step not in steps:
-        raise CheckpointError(f"no checkpoint at env step {step}; available: {steps}")
-    abstract = jax.eval_shape(train.init, key)
-    has_buffer = "buffer" in ckpt.item_names(step)
-    targets = {"state": abstract.replace(buffer=None)}
-    if has_buffer:
-        targets["buffer"] = abstract.buffer
-    try:
-        restored = ckpt.restore(targets, step)
-    except CheckpointError as e:
-        older = [s for s in steps if s < step]
-        hint = f"; older checkpoints: {older} (--resume-step N)" if older else ""
-        raise CheckpointError(f"{e}; nothing was deleted{hint}") from e
-    if has_buffer:
-        buffer = restored["buffer"]
-    else:
-        print("note: the checkpoint has no replay buffer (--no-save-buffer); resuming with an "
-              "empty one", file=sys.stderr)  # fmt: skip
-        buffer = jax.jit(train.init)(key).buffer
-    return commit(restored["state"].replace(buffer=buffer)), step
-
-
-def commit(state: Any) -> Any:
-    """Commits every leaf to the default device.
-
-    A fresh `init` output is uncommitted and a restored one committed; jit compiles a program
-    per kind, so both paths commit to share one compiled (and cached) train step.
-    """
-    import jax
-
-    return jax.device_put(state, jax.devices()[0])
-
-
-class _StopOnSigint:
-    """First Ctrl-C: finish the chunk, save, exit 0. Second: KeyboardInterrupt (abort)."""
-
-    def __enter__(self) -> _StopOnSigint:
-        self.requested = False
-        self._previous = None
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handle)
-        return self
-
-    def _handle(self, signum, frame) -> None:
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-        print("\nCtrl-C: finishing the chunk, then saving a checkpoint (Ctrl-C again aborts)",
-              file=sys.stderr)  # fmt: skip
-
-    def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-
-
-def summary(config: Config, spec: Any, buffer_line: str, run_dir: Path) -> str:
-    """The resolved-config lines printed before a run starts."""
-    import jax
-
-    t, a = config.train, config.agent
-    arch = a.arch
-    sirl = (f"TDMPBC beta={a.sirl.beta:g} G={a.sirl.g_source} ({a.sirl.bc_form})"
-            if a.sirl.enabled else "plain TD-MPC2 (no BC term)")  # fmt: skip
-    bar = "none" if spec.success_bar is None else f"{spec.success_bar:g}"
-    every = lambda n: f"{n:,}" if n else "never"
-    return "\n".join([
-        f"task {spec.id} (T={spec.episode_length}, success bar {bar}), seed {t.seed}, "
-        f"{t.steps:,} env steps, E={t.num_envs} x K={t.chunk_steps} per call, utd {t.utd:g}",
-        f"agent: {a.model_size} (enc {arch.enc_dim}, mlp {arch.mlp_dim}, latent "
-        f"{arch.latent_dim}, {arch.num_q} Qs), H={a.horizon}, MPPI {a.iterations} it x "
-        f"{a.num_samples} samples, batch {a.batch_size}, {sirl}",
-        buffer_line,
-        f"run dir {run_dir}: eval every {every(t.eval_every)}, checkpoint every "
-        f"{every(t.checkpoint_every)} (buffer {'saved' if t.save_buffer else 'not saved'}), "
-        f"log every {t.log_every:,}",
-        f"device: {jax.default_backend()} ({jax.devices()[0].device_kind}, "
-        f"{jax.device_count()} device(s))",
-    ])  # fmt: skip
 
 
 # ---------------------------------------------------------------- the run loop
@@ -366,7 +247,8 @@ def _eval_key(seed: int, env_steps: int):
 def _evaluate(run: _Run, eval_fn, state, env_steps: int) -> dict[str, float]:
     import jax
 
-    metrics = _scalars(jax.device_get(eval_fn(state, _eval_key(run.config.train.seed, env_steps))))
+    key = _eval_key(run.config.train.seed, env_steps)
+    metrics = prog.host_scalars(jax.device_get(eval_fn(state, key)))
     run.log.log("eval", env_steps, metrics)
     run.bar.write(f"eval @ {env_steps:,}: " + ", ".join(f"{k} {v:.4g}" for k, v in metrics.items()))
     return metrics
@@ -376,21 +258,21 @@ def _nonfinite_failure(run: _Run, backup, before: int, bad: list[str]) -> Traini
     reached = before + run.train.steps_per_call
     where = f"non-finite values in the chunk ending at env step {reached:,}: {', '.join(bad)}"
     if backup is not None:
-        good = save_checkpoint(run.ckpt, backup, run.config.train.save_buffer)
+        good = save_state(run.ckpt, backup, run.config.train.save_buffer)
         return TrainingFailure(f"{where}; the last good state (env step {good:,}) is saved in "
                                f"{run.ckpt.directory} with the earlier checkpoints")  # fmt: skip
     return TrainingFailure(f"{where}; the state was not saved (--no-guard); the last checkpoint "
                            f"is env step {run.saved}")  # fmt: skip
 
 
-def _oom_failure(run: _Run, error: Exception, env_steps: int) -> TrainingFailure:
-    t, a = run.config.train, run.config.agent
+def _oom_failure(config: Config, error: Exception, where: str) -> TrainingFailure:
+    t, a = config.train, config.agent
     first = str(error).strip().splitlines()[0][:200]
     return TrainingFailure(
-        f"out of device memory at env step {env_steps:,} ({first}); reduce --buffer-size "
-        f"(now {t.buffer_size:,}), --num-envs ({t.num_envs}), --chunk-steps ({t.chunk_steps}), "
-        f"--agent.batch-size ({a.batch_size}), --agent.num-samples ({a.num_samples}) or "
-        f"--model-size ({a.model_size}), or pass --no-guard; last checkpoint: env step {run.saved}"
+        f"out of device memory {where} ({first}); reduce --buffer-size (now {t.buffer_size:,}), "
+        f"--num-envs ({t.num_envs}), --chunk-steps ({t.chunk_steps}), --agent.batch-size "
+        f"({a.batch_size}), --agent.num-samples ({a.num_samples}) or --model-size "
+        f"({a.model_size}), or pass --no-guard"
     )
 
 
@@ -405,7 +287,7 @@ def _loop(run: _Run, state) -> int:
     env_steps, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
     mean, timing = prog.MetricMean(), []  # timing: (time, env_steps) of chunks with updates
     on_cpu = jax.default_backend() == "cpu"
-    with _StopOnSigint() as stop:
+    with prog.StopOnSigint() as stop, contextlib.closing(run.bar):
         while env_steps < t.steps and not stop.requested:
             before, updates_before = env_steps, updates
             try:
@@ -416,9 +298,10 @@ def _loop(run: _Run, state) -> int:
                 )
             except jax.errors.JaxRuntimeError as e:
                 if "RESOURCE_EXHAUSTED" in str(e):
-                    raise _oom_failure(run, e, before) from e
+                    where = f"at env step {before:,} (last checkpoint: {run.saved})"
+                    raise _oom_failure(run.config, e, where) from e
                 raise
-            metrics, env_steps, updates = _scalars(metrics), int(env_steps), int(updates)
+            metrics, env_steps, updates = prog.host_scalars(metrics), int(env_steps), int(updates)
             bad = prog.failures(metrics)
             if bad:
                 run.log.log("metrics", before + run.train.steps_per_call, metrics)
@@ -430,7 +313,7 @@ def _loop(run: _Run, state) -> int:
             if prog.crossed(before, env_steps, t.eval_every):
                 _evaluate(run, eval_fn, state, env_steps)
             if prog.crossed(before, env_steps, t.checkpoint_every):
-                run.saved = save_checkpoint(run.ckpt, state, t.save_buffer)
+                run.saved = save_state(run.ckpt, state, t.save_buffer)
             if on_cpu and updates > updates_before and len(timing) < 4:
                 timing.append((time.perf_counter(), env_steps))
                 if len(timing) == 4:  # rate over steady chunks: skips compile and pretraining
@@ -441,8 +324,7 @@ def _loop(run: _Run, state) -> int:
                                       f"{t.steps:,} steps; use --preset smoke or a GPU")
     if stop.requested and env_steps < t.steps and mean.pending():
         run.log.log("metrics", env_steps, {**mean.pop(), "updates": updates})
-    run.saved = save_checkpoint(run.ckpt, state, t.save_buffer)
-    run.bar.close()
+    run.saved = save_state(run.ckpt, state, t.save_buffer)
     how = "stopped by Ctrl-C" if env_steps < t.steps else "done"
     print(f"{how} at env step {env_steps:,}; checkpoint saved in {run.ckpt.directory}"
           + (f"; continue with: python -m sirl_jax train --resume {run.log.run_dir}"
@@ -493,18 +375,27 @@ def train(args: TrainArgs) -> int:
     nbytes = _tree_nbytes(jax.eval_shape(trainer.init, key).buffer)
     buffer = getattr(trainer, "buffer", None)
     line = buffer.describe() if hasattr(buffer, "describe") else f"buffer: {nbytes / 1e9:.3f} GB"
-    print(summary(config, spec, line, run_dir))
+    print(runlog.describe_run(config, spec, line, run_dir))
+    if jax.default_backend() == "cpu" and config.agent.model_size != "tiny":
+        print(f"CPU only: a {config.agent.model_size} model for {config.train.steps:,} steps "
+              "takes days here; a cost estimate follows after two training chunks (after the "
+              "seed phase); use --preset smoke or a GPU")  # fmt: skip
     check_buffer_fits(nbytes)
     run_dir.mkdir(parents=True, exist_ok=True)
     ckpt = Checkpointer(run_dir / "checkpoints", max_to_keep=args.keep)
     try:
         saved = None
-        if resuming:  # restore before writing anything, so a bad checkpoint changes nothing
-            _check_resume_step(ckpt, args.resume_step)
-            state, saved = restore_checkpoint(ckpt, trainer, key, args.resume_step)
-            print(f"resumed from env step {saved:,}")
-        else:
-            state = commit(jax.jit(trainer.init)(key))
+        try:  # restore before writing anything, so a bad checkpoint changes nothing
+            if resuming:
+                _check_resume_step(ckpt, args.resume_step)
+                state, saved = restore_state(ckpt, trainer.init, key, args.resume_step)
+                print(f"resumed from env step {saved:,}")
+            else:
+                state = commit(jax.jit(trainer.init)(key))
+        except jax.errors.JaxRuntimeError as e:
+            if "RESOURCE_EXHAUSTED" in str(e):
+                raise _oom_failure(config, e, "while allocating the train state") from e
+            raise
         runlog.write_json(run_dir / "config.json", runlog.config_to_dict(config))
         runlog.record_versions(run_dir)
         wandb_run = None
@@ -542,12 +433,12 @@ def evaluate(args: EvalArgs) -> int:
     trainer = make_train(config, env)
     ckpt = Checkpointer(run_dir / "checkpoints")
     try:
-        state, step = restore_checkpoint(ckpt, trainer, jax.random.PRNGKey(config.train.seed),
+        state, step = restore_state(ckpt, trainer.init, jax.random.PRNGKey(config.train.seed),
                                          args.step)  # fmt: skip
     finally:
         ckpt.close()
     out = jax.device_get(jax.jit(trainer.evaluate)(state, _eval_key(config.train.seed, step)))
-    print(json.dumps({"task": spec.id, "env_steps": step, **_scalars(out)}))
+    print(json.dumps({"task": spec.id, "env_steps": step, **prog.host_scalars(out)}))
     return EXIT_OK
 
 
@@ -621,4 +512,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 __all__ = ["RESUME_MUTABLE", "EvalArgs", "TrainArgs", "TrainingFailure", "UsageError", "main",
-           "parse_train_args", "restore_checkpoint", "save_checkpoint"]  # fmt: skip
+           "parse_train_args"]  # fmt: skip

@@ -1,12 +1,16 @@
-"""The progress bar and throughput/ETA arithmetic of the shell (host side, chunk boundaries)."""
+"""Host-side run bookkeeping at chunk boundaries: the progress bar, throughput and ETA,
+log/eval/checkpoint schedules, failure counters, metric reduction, and Ctrl-C handling."""
 
 from __future__ import annotations
 
 import math
+import signal
 import sys
+import threading
 import time
 from collections.abc import Mapping
 
+import numpy as np
 from tqdm import tqdm
 
 
@@ -165,3 +169,37 @@ class MetricMean:
                 out[name] = total / n if n else math.nan
         self._sum, self._count, self._last = {}, {}, {}
         return out
+
+
+def host_scalars(tree: Mapping, prefix: str = "") -> dict[str, float]:
+    """Flattens a (nested) dict of fetched metric arrays to {name: float} (mean if not [])."""
+    out = {}
+    for name, value in tree.items():
+        if isinstance(value, Mapping):
+            out.update(host_scalars(value, f"{prefix}{name}/"))
+        else:
+            out[prefix + name] = float(np.mean(value))
+    return out
+
+
+class StopOnSigint:
+    """First Ctrl-C: sets `requested` (the loop finishes its chunk, saves, exits 0).
+    Second Ctrl-C: KeyboardInterrupt. Installed only in the main thread."""
+
+    def __enter__(self) -> StopOnSigint:
+        self.requested = False
+        self._previous = None
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        print("\nCtrl-C: finishing the chunk, then saving a checkpoint (Ctrl-C again aborts)",
+              file=sys.stderr)  # fmt: skip
+
+    def __exit__(self, *exc) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)

@@ -260,3 +260,28 @@ class RunLog:
             self._tb.close()
         if self._wandb is not None:
             self._wandb.finish()
+
+
+def describe_run(config: Any, spec: Any, buffer_line: str, run_dir: Path) -> str:
+    """The resolved-config lines printed before a run starts (config: a `Config`)."""
+    import jax
+
+    t, a = config.train, config.agent
+    arch = a.arch
+    sirl = (f"TDMPBC beta={a.sirl.beta:g} G={a.sirl.g_source} ({a.sirl.bc_form})"
+            if a.sirl.enabled else "plain TD-MPC2 (no BC term)")  # fmt: skip
+    bar = "none" if spec.success_bar is None else f"{spec.success_bar:g}"
+    every = lambda n: f"{n:,}" if n else "never"
+    return "\n".join([
+        f"task {spec.id} (T={spec.episode_length}, success bar {bar}), seed {t.seed}, "
+        f"{t.steps:,} env steps, E={t.num_envs} x K={t.chunk_steps} per call, utd {t.utd:g}",
+        f"agent: {a.model_size} (enc {arch.enc_dim}, mlp {arch.mlp_dim}, latent "
+        f"{arch.latent_dim}, {arch.num_q} Qs), H={a.horizon}, MPPI {a.iterations} it x "
+        f"{a.num_samples} samples, batch {a.batch_size}, {sirl}",
+        buffer_line,
+        f"run dir {run_dir}: eval every {every(t.eval_every)}, checkpoint every "
+        f"{every(t.checkpoint_every)} (buffer {'saved' if t.save_buffer else 'not saved'}), "
+        f"log every {t.log_every:,}",
+        f"device: {jax.default_backend()} ({jax.devices()[0].device_kind}, "
+        f"{jax.device_count()} device(s))",
+    ])  # fmt: skip

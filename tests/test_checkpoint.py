@@ -169,3 +169,23 @@ def test_shape_mismatch_and_missing_checkpoint(tmp_path):
     wrong = _state(0).replace(params={"w": jnp.zeros((5, 3)), "b": jnp.zeros(3)})
     with pytest.raises(CheckpointError, match="unreadable"):
         ckpt.restore(_targets(wrong))
+
+
+@pytest.mark.timeout(60)
+def test_other_structure_is_refused_by_name(tmp_path):
+    ckpt = Checkpointer(tmp_path / "ck")
+    _save(ckpt, _state(1), 1)
+    other = _state(0).replace(params={"w": jnp.zeros((4, 3)), "bias": jnp.zeros(3)})
+    with pytest.raises(CheckpointError, match="params_b.*params_bias|does not match"):
+        ckpt.restore(_targets(other))
+
+
+@pytest.mark.timeout(60)
+def test_zero_size_leaves_round_trip(tmp_path):
+    # MJX data carries zero-size arrays (e.g. `act` of a model without actuator state)
+    tree = {"act": jnp.zeros((2, 0)), "qpos": jnp.arange(4.0)}
+    ckpt = Checkpointer(tmp_path / "ck")
+    ckpt.save(3, {"state": tree})
+    back = ckpt.restore({"state": jax.eval_shape(lambda: tree)})["state"]
+    assert back["act"].shape == (2, 0)
+    np.testing.assert_array_equal(back["qpos"], np.arange(4.0))

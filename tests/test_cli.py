@@ -24,7 +24,7 @@ import pytest
 from flax import struct
 
 from sirl_jax import cli, progress, runlog
-from sirl_jax.checkpoint import Checkpointer
+from sirl_jax.checkpoint import Checkpointer, restore_state
 from sirl_jax.config import Config
 
 STEPS, STOP_AT, PER_CALL = 650, 550, 50
@@ -57,7 +57,7 @@ def _load_final(run_dir: Path):
     config = runlog.load_config(run_dir, Config)
     trainer = make_train(config, load_task(config.train.task)[1])
     ckpt = Checkpointer(run_dir / "checkpoints")
-    state, step = cli.restore_checkpoint(ckpt, trainer, jax.random.PRNGKey(config.train.seed))
+    state, step = restore_state(ckpt, trainer.init, jax.random.PRNGKey(config.train.seed))
     ckpt.close()
     return step, jax.tree.leaves(state)
 
@@ -334,3 +334,18 @@ def test_out_of_memory_says_what_to_reduce(monkeypatch, tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("error: out of device memory") and "--buffer-size" in err
     assert "Traceback" not in err
+
+
+def test_runlog_csv_grows_columns_and_drops_rows_past_a_step(tmp_path):
+    log = runlog.RunLog(tmp_path, tensorboard=False)
+    log.log("metrics", 10, {"a": 1.0})
+    log.log("metrics", 20, {"a": 2.0, "b": math.nan})
+    log.log("metrics", 30, {"a": 3.0, "b": 4.0})
+    lines = (tmp_path / "metrics.csv").read_text().splitlines()
+    assert lines[0].split(",") == ["env_steps", "wall_time", "a", "b"]
+    assert [ln.split(",")[0] for ln in lines[1:]] == ["10", "20", "30"]
+    assert lines[1].endswith(",1.0,")  # the column added later is empty in older rows
+    log.drop_after(20)
+    assert [r["env_steps"] for r in runlog.read_jsonl(tmp_path / "metrics.jsonl")] == [10, 20]
+    assert len((tmp_path / "metrics.csv").read_text().splitlines()) == 3
+    log.close()

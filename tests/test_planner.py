@@ -149,8 +149,8 @@ def test_env_chunked_map_equals_vmap():
     first = jnp.array([True, False, True, False])
     out = []
     for chunk in (0, 2):
-        cfg = AgentConfig.tiny(num_samples=64, num_elites=8, plan_env_chunk=chunk)
-        planner = make_planner(cfg, A, 0.9, 2, _fake_model())
+        cfg = AgentConfig.tiny(num_samples=64, num_elites=8)
+        planner = make_planner(cfg, A, 0.9, 2, _fake_model(), env_chunk=chunk)
         state = planner.init(4)
         state = state.replace(prev_mean=jnp.full_like(state.prev_mean, 0.2))
         out.append(jax.jit(planner.plan)(params, state, obs, first, jax.random.PRNGKey(1)))

@@ -91,7 +91,7 @@ def main() -> None:
     args = ap.parse_args()
     O, A = args.obs, args.act
     cfg = AgentConfig(model_size=args.model_size)
-    agent = make_agent(cfg, O, A, episode_length=1000)
+    agent = make_agent(dataclasses.replace(cfg, plan_env_chunk=0), O, A, episode_length=1000)
     state = agent.init(jax.random.PRNGKey(0))
     H, B, Z = cfg.horizon, cfg.batch_size, cfg.arch.latent_dim
     k = jax.random.PRNGKey(1)
@@ -116,7 +116,7 @@ def main() -> None:
         ps = agent.init_planner(E)
         obs = jax.random.normal(k, (E, O))
         first = jnp.zeros((E,), bool)
-        variants = [("", agent)] + ([(" map", mapped)] if E > 1 else [])
+        variants = [(" vmap", agent)] + ([(" map", mapped)] if E > 1 else [])
         for suffix, ag in variants:
             plan, c_plan = compile_timed(ag.plan, state, ps, obs, first, k, eval_mode=False)
             ms = time_calls(plan, (state, ps, obs, first, k), args.reps)
@@ -124,20 +124,20 @@ def main() -> None:
             gfs = matmul_gflops(E * cfg.num_samples, Z + A, cfg.arch.mlp_dim)
             rows.append((f"plan E={E}{suffix}", ms, flops, gfs, c_plan))
     print(
-        f"{'call':<14}{'ms/call':>10}{'GFLOP':>9}{'mm GFLOP/s':>12}{'mm ms':>9}"
+        f"{'call':<15}{'ms/call':>10}{'GFLOP':>9}{'mm GFLOP/s':>12}{'mm ms':>9}"
         f"{'ratio':>7}{'compile s':>11}"
     )
     for name, ms, flops, gfs, comp in rows:
         mm_ms = flops / (gfs * 1e6)
         print(
-            f"{name:<14}{ms:>10.1f}{flops / 1e9:>9.2f}{gfs:>12.1f}{mm_ms:>9.1f}"
+            f"{name:<15}{ms:>10.1f}{flops / 1e9:>9.2f}{gfs:>12.1f}{mm_ms:>9.1f}"
             f"{ms / mm_ms:>7.2f}{comp:>11.1f}"
         )
     plans = {r[0]: r[1] for r in rows if r[0].startswith("plan")}
     if len(plans) > 1:
         e_min, e_max = min(args.envs), max(args.envs)
-        per1 = plans[f"plan E={e_min}"] / e_min
-        for name in (f"plan E={e_max}", f"plan E={e_max} map"):
+        per1 = plans[f"plan E={e_min} vmap"] / e_min
+        for name in (f"plan E={e_max} vmap", f"plan E={e_max} map"):
             perE = plans[name] / e_max
             print(
                 f"plan ms per env: E={e_min} {per1:.1f}, {name} {perE:.1f} "

@@ -137,10 +137,8 @@ def main() -> None:
     if args.solver:
         it, ls, eulerdamp = (int(x) for x in args.solver.split(","))
         model.opt.iterations, model.opt.ls_iterations = it, ls
-        flag = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
-        model.opt.disableflags = (
-            model.opt.disableflags & ~flag if eulerdamp else model.opt.disableflags | flag
-        )
+        flags = model.opt.disableflags
+        model.opt.disableflags = flags & ~_EULERDAMP if eulerdamp else flags | _EULERDAMP
     robot = h1.Robot(model)
     mx = mjx.put_model(model)
     d0 = h1.keyframe_data(model, mx)
@@ -158,20 +156,21 @@ def main() -> None:
         print(f"cold compile of one control step (E=1): {compile_seconds(model):.0f} s")
     print(
         "\n| E | MJX per-call (steps/s) | MJX scan (steps/s) | C rollout 2 threads | "
-        "MJX best / C 1 thread | first call (s) |"
+        "C 1 thread | MJX best / C 1 thread | first call (s) |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     for n_envs in args.envs:
         row, firsts = {}, []
         for mode in args.modes:
             rate, first = bench_mjx(model, robot, n_envs, mode, args.repeats)
             row[mode] = rate
             firsts.append(f"{first:.0f}")
-        roll = bench_c_rollout(model, robot, n_envs)
+        roll = bench_c_rollout(model, robot, n_envs, n_steps=max(20, 1000 // n_envs))
+        c1 = bench_c_single(model, robot)  # again, next to the MJX numbers of this row
         best = max(row.values())
         print(
             f"| {n_envs} | {row.get('per-call', float('nan')):.0f} | "
-            f"{row.get('scan', float('nan')):.0f} | {roll:.0f} | {best / c1:.2f} | "
+            f"{row.get('scan', float('nan')):.0f} | {roll:.0f} | {c1:.0f} | {best / c1:.2f} | "
             f"{'/'.join(firsts)} |",
             flush=True,
         )

@@ -142,10 +142,10 @@ def bench_config(name: str, agent_cfg: AgentConfig, e: int, k: int, repeats: int
     print(f"\n{name}: E={e}, K={k}, utd=1, B={agent_cfg.batch_size}, {n} transitions per call")
     print(f"| {'what':<16} | {'s per call':>10} | {'env steps/s':>11} | {'share':>6} |")
     print(f"|{'-' * 18}|{'-' * 12}|{'-' * 13}|{'-' * 8}|")
-    print(f"| {'fused step':<16} | {fused:10.3f} | {n / fused:11.0f} | {'':>6} |")
+    print(f"| {'fused step':<16} | {fused:10.3f} | {n / fused:11.1f} | {'':>6} |")
     for part in parts:
         print(f"| {part:<16} | {med[part]:10.3f} | {'':>11} | {med[part] / total:6.1%} |")
-    print(f"| {'sum of parts':<16} | {total:10.3f} | {n / total:11.0f} | {'':>6} |")
+    print(f"| {'sum of parts':<16} | {total:10.3f} | {n / total:11.1f} | {'':>6} |")
     print(f"fused overhead vs sum of parts (median of per-round ratios): {overhead:+.1%}")
 
 

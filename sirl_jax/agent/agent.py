@@ -89,6 +89,9 @@ def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length
         )
     )
     iterations = cfg.iterations + (2 if action_size >= 20 else 0)
+    env_chunk = cfg.plan_env_chunk
+    if env_chunk is None:  # measured: sequential envs are faster than one big vmap on CPU
+        env_chunk = 1 if jax.default_backend() == "cpu" else 0
     wm = make_world_model(cfg, action_size)
     wm_tx = _wm_optimizer(cfg)
     pi_tx = optax.chain(
@@ -106,6 +109,7 @@ def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length
             pi_sample=lambda p, z, k: wm.pi(p, z, k).action,
             q_avg=lambda p, z, a, k: wm.q_pair(p["qs"], z, a, k, "avg", None),
         ),
+        env_chunk,
     )
 
     def init(key: jax.Array) -> AgentState:

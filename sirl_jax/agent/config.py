@@ -102,9 +102,9 @@ class AgentConfig:
     num_elites: int = 64
     num_pi_trajs: int = 24
     temperature: float = 0.5
-    plan_env_chunk: int = 0
-    """0: plan all E envs in one vmap; k > 0: lax.map over chunks of k envs (not a reference
-    field; results are identical, only speed and memory differ)."""
+    plan_env_chunk: int | None = None
+    """0: plan all E envs in one vmap; k > 0: lax.map over chunks of k envs; None: 1 on CPU, 0 on
+    accelerators. Not a reference field: results are identical, only speed and memory differ."""
     min_std: float = 0.05
     max_std: float = 2.0
     # losses and optimisation (§2)
@@ -157,7 +157,12 @@ class AgentConfig:
             self.min_std,
             f"0 < min_std <= max_std ({self.max_std})",
         )
-        _check(self.plan_env_chunk >= 0, "plan_env_chunk", self.plan_env_chunk, "an int >= 0")
+        _check(
+            self.plan_env_chunk is None or self.plan_env_chunk >= 0,
+            "plan_env_chunk",
+            self.plan_env_chunk,
+            "None (auto) or an int >= 0",
+        )
         _check(self.temperature > 0, "temperature", self.temperature, "> 0")
         _check(0 < self.rho <= 1, "rho", self.rho, "in (0, 1]")
         _check(self.lr > 0, "lr", self.lr, "> 0")

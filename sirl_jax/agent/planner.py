@@ -116,9 +116,17 @@ def warm_start(prev_mean: jax.Array, first: jax.Array) -> jax.Array:
 
 
 def make_planner(
-    cfg: AgentConfig, action_size: int, discount: float, iterations: int, model: PlannerModel
+    cfg: AgentConfig,
+    action_size: int,
+    discount: float,
+    iterations: int,
+    model: PlannerModel,
+    env_chunk: int = 0,
 ) -> Planner:
-    """MPPI planner over `model`; `iterations` is the already-adjusted count."""
+    """MPPI planner over `model`; `iterations` is the already-adjusted count.
+
+    env_chunk: 0 vmaps over all envs; k > 0 maps sequentially over chunks of k envs.
+    """
     H, A, N, P = cfg.horizon, action_size, cfg.num_samples, cfg.num_pi_trajs
 
     def init(num_envs: int) -> PlannerState:
@@ -163,9 +171,9 @@ def make_planner(
         keys = jax.random.split(key, obs.shape[0])
         one = lambda xs: plan_one(params, *xs, eval_mode)
         xs = (state.prev_mean, first, obs, keys)
-        if cfg.plan_env_chunk > 0:
+        if env_chunk > 0:
             # Sequential over chunks of envs (a CPU option: keeps activations cache-sized).
-            actions, means = jax.lax.map(one, xs, batch_size=cfg.plan_env_chunk)
+            actions, means = jax.lax.map(one, xs, batch_size=env_chunk)
         else:
             actions, means = jax.vmap(one)(xs)
         return actions, PlannerState(prev_mean=means)

@@ -124,10 +124,22 @@ def add_static_geom(
     return geom
 
 
+def contact_arrays(data: mjx.Data) -> tuple[jax.Array, jax.Array]:
+    """(dist [C], geom [C, 2]) of the MJX contact slots (MJX 3.17 moved `contact` to `_impl`)."""
+    impl = getattr(data, "_impl", None)
+    contact = getattr(impl, "contact", None) if impl is not None else None
+    if contact is None:
+        contact = data.contact
+    return contact.dist, contact.geom
+
+
 def geom_mask(model: mujoco.MjModel, ids) -> np.ndarray:
-    """[ngeom] bool mask with True at `ids`."""
+    """[ngeom] bool mask with True at `ids` (geom ids; -1, a name lookup that failed, raises)."""
+    ids = np.asarray(list(ids), int)
+    if (ids < 0).any() or (ids >= model.ngeom).any():
+        raise ValueError(f"geom ids must be in [0, {model.ngeom}), got {ids.tolist()}")
     mask = np.zeros(model.ngeom, bool)
-    mask[np.asarray(list(ids), int)] = True
+    mask[ids] = True
     return mask
 
 

@@ -10,7 +10,13 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import BIT_OBJECT, Task, geom_mask, set_contact_bits
+from sirl_jax.envs.humanoid import (
+    BIT_OBJECT,
+    Task,
+    contact_arrays,
+    geom_mask,
+    set_contact_bits,
+)
 from sirl_jax.envs.tasks.common import fallen, robot_groups
 
 BALANCE_ROOT = (-0.1, 0.0, 1.38)
@@ -90,7 +96,7 @@ class BalanceTask(Task):
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             robot.com_velocity(data),
         )  # fmt: skip
-        dist, geom = data.contact.dist, data.contact.geom
+        dist, geom = contact_arrays(data)
         sphere_bad = R.any_contact(dist, geom, self._sphere, self._not_floor_board)
         floor_bad = R.any_contact(dist, geom, self._floor, self._not_sphere)
         bad_contact = sphere_bad | floor_bad

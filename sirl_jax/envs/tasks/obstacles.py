@@ -18,6 +18,7 @@ from sirl_jax.envs.humanoid import (
     ALL_GROUPS,
     Task,
     add_static_geom,
+    contact_arrays,
     geom_mask,
     set_contact_bits,
     set_max_geom_pairs,
@@ -144,7 +145,7 @@ class _ContactTask(Task):
         self._penalised = jnp.asarray(geom_mask(model, ids))
 
     def _touching(self, data: mjx.Data) -> jax.Array:
-        return R.any_contact(data.contact.dist, data.contact.geom, self._penalised)
+        return R.any_contact(*contact_arrays(data), self._penalised)
 
 
 class HurdleTask(_ContactTask):
