@@ -320,12 +320,14 @@ def _loop(run: _Run, state) -> int:
                     (t0, s0), (t1, s1) = timing[1], timing[3]
                     eta = (t.steps - env_steps) * (t1 - t0) / max(s1 - s0, 1)
                     if eta > _CPU_WARN_SECONDS:
-                        run.bar.write(f"CPU only: ~{prog.format_duration(eta)} more for "
-                                      f"{t.steps:,} steps; use --preset smoke or a GPU")
+                        run.bar.write(
+                            f"CPU only: ~{prog.format_duration(eta)} more for "
+                            f"{t.steps:,} steps; use --preset smoke or a GPU"
+                        )
     if stop.requested and env_steps < t.steps and mean.pending():
         run.log.log("metrics", env_steps, {**mean.pop(), "updates": updates})
     run.saved = save_state(run.ckpt, state, t.save_buffer)
-    how = "stopped by Ctrl-C" if env_steps < t.steps else "done"
+    how = "stopped (Ctrl-C/SIGTERM)" if env_steps < t.steps else "done"
     print(f"{how} at env step {env_steps:,}; checkpoint saved in {run.ckpt.directory}"
           + (f"; continue with: python -m sirl_jax train --resume {run.log.run_dir}"
              if env_steps < t.steps else ""))  # fmt: skip
@@ -423,7 +425,10 @@ def evaluate(args: EvalArgs) -> int:
     run_dir = Path(args.run)
     config = runlog.load_config(run_dir, Config)
     if args.episodes is not None:
-        train_cfg = dataclasses.replace(config.train, eval_episodes=args.episodes)
+        try:
+            train_cfg = dataclasses.replace(config.train, eval_episodes=args.episodes)
+        except ValueError as e:
+            raise UsageError(str(e)) from e
         config = dataclasses.replace(config, train=train_cfg)
     if not (run_dir / "checkpoints").is_dir():
         raise UsageError(f"{run_dir} has no checkpoints/")

@@ -49,9 +49,7 @@ def make_evaluate(env: Env, agent, num_episodes: int, buffer) -> Callable:
             return (nxt, aux, ended | done, ret, length), None
 
         init = (env_state, agent.init_planner(num_episodes), jnp.zeros_like(zeros, bool))
-        carry, _ = jax.lax.scan(
-            body, (*init, zeros, zeros), jax.random.split(key_run, horizon)
-        )
+        carry, _ = jax.lax.scan(body, (*init, zeros, zeros), jax.random.split(key_run, horizon))
         return carry[3], carry[4]
 
     def summary(prefix: str, returns: jax.Array, lengths: jax.Array) -> dict[str, jax.Array]:

@@ -183,23 +183,29 @@ def host_scalars(tree: Mapping, prefix: str = "") -> dict[str, float]:
 
 
 class StopOnSigint:
-    """First Ctrl-C: sets `requested` (the loop finishes its chunk, saves, exits 0).
-    Second Ctrl-C: KeyboardInterrupt. Installed only in the main thread."""
+    """First Ctrl-C (SIGINT) or SIGTERM: sets `requested`; the loop finishes its chunk, saves
+    and exits 0. A second one: KeyboardInterrupt. Installed only in the main thread."""
+
+    _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __enter__(self) -> StopOnSigint:
         self.requested = False
-        self._previous = None
+        self._previous: dict = {}
         if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handle)
+            for sig in self._SIGNALS:
+                self._previous[sig] = signal.signal(sig, self._handle)
         return self
 
     def _handle(self, signum, frame) -> None:
         if self.requested:
             raise KeyboardInterrupt
         self.requested = True
-        print("\nCtrl-C: finishing the chunk, then saving a checkpoint (Ctrl-C again aborts)",
-              file=sys.stderr)  # fmt: skip
+        name = signal.Signals(signum).name
+        print(
+            f"\n{name}: finishing the chunk, then saving a checkpoint (Ctrl-C again aborts)",
+            file=sys.stderr,
+        )
 
     def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
+        for sig, previous in self._previous.items():
+            signal.signal(sig, previous)

@@ -19,6 +19,8 @@ from mujoco import mjx
 
 from sirl_jax.envs import h1
 
+pytestmark = pytest.mark.timeout(120)  # per test; the MJX tests below set their own
+
 _REPO = Path(__file__).resolve().parents[1]
 # the spec lives in shared/spec beside or inside the checkout
 _FACTS_CANDIDATES = tuple(

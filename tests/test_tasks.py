@@ -5,7 +5,9 @@ in a `lax.scan` over E = 4 envs, with the `mjx.Model` as a jit argument, and run
 models: without gravity under the action that holds the keyframe pose (nothing can fall, so
 every episode must end by truncation at exactly `EPISODE` steps), and limp (every actuator's
 gain and bias zeroed, normal gravity), where the robot collapses and every task with a
-termination must terminate. Compiles dominate (about a minute each on 2 cores), so CI runs a
+termination must terminate (sit and maze excepted: the chair or a block can hold the robot up);
+where the termination is a root height, it must fire exactly when the root is below it.
+Compiles dominate (about a minute each on 2 cores), so CI runs a
 representative subset and the rest is marked slow.
 """
 
@@ -28,6 +30,13 @@ E = 4
 EPISODE = 100  # a short time limit (2 s), long enough for a limp robot to collapse
 EXTRA = 20
 NEVER_TERMINATE = ("reach", "crawl")
+# Scenery can hold a limp robot up: it falls back onto the chair and stays seated above the
+# 0.5 m termination height, or leans against a maze block with the root above 0.2 m.
+CAUGHT_BY_SCENE = ("sit_simple", "sit_hard", "maze")
+ROOT_Z_TERMINATION = {
+    "stand": 0.2, "walk": 0.2, "run": 0.2, "hurdle": 0.2, "maze": 0.2,
+    "sit_simple": 0.5, "sit_hard": 0.5, "pole": 0.5,
+}  # fmt: skip
 OBS = {
     "h1hand": {"reach": 157, "sit_hard": 164, "balance_simple": 164, "balance_hard": 177},
     "h1": {"reach": 57, "sit_hard": 64, "balance_simple": 64, "balance_hard": 77},
@@ -151,6 +160,7 @@ def _rollout(env):
             )
             trace = {
                 "finite": finite,
+                "root_z": state.final_obs[:, 2],  # obs starts with qpos
                 "reward": state.reward,
                 "terminated": state.terminated,
                 "truncated": state.truncated,
@@ -217,8 +227,16 @@ def test_rollout(rollouts, task_id):
     if name in NEVER_TERMINATE:
         assert not limp["terminated"].any()
         assert limp["truncated"][EPISODE - 1].all()
-    else:
+    elif name not in CAUGHT_BY_SCENE:
         assert limp["terminated"].any(axis=0).all()
+    elif name == "maze":
+        assert limp["terminated"].any()
+    if name in ROOT_Z_TERMINATION:  # the termination is exactly HumanoidBench's height test
+        for trace in (hold, limp):
+            fell = trace["root_z"] < ROOT_Z_TERMINATION[name]
+            np.testing.assert_array_equal(trace["terminated"], fell)
+    if name.startswith("balance"):
+        assert limp["terminated"][limp["root_z"] < 0.8].all()
 
 
 @pytest.mark.timeout(900)

@@ -14,6 +14,10 @@ Run: .venv/bin/python -m experiments.bench.bench_robot [--envs 1 16 64 256] [--c
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
+import sys
+import tempfile
 import time
 
 import jax
@@ -78,18 +82,26 @@ def bench_mjx(model, robot, n_envs: int, mode: str, repeats: int) -> tuple[float
 
 
 def compile_seconds(model) -> float:
-    """Cold compile time (persistent cache off) of one jitted control step, E = 1."""
+    """Seconds to lower and compile one jitted control step (E = 1) with the persistent cache
+    pointed at a fresh directory (run `--compile-only` in a child process to get a cold number)."""
     mx = mjx.put_model(model)
     d0 = h1.keyframe_data(model, mx)
     stepper = h1.make_control_step()
     step = jax.jit(lambda d, c: stepper(mx, d, c))
-    jax.config.update("jax_enable_compilation_cache", False)
-    try:
-        t0 = time.perf_counter()
-        step.lower(d0, d0.ctrl).compile()
-        return time.perf_counter() - t0
-    finally:
-        jax.config.update("jax_enable_compilation_cache", True)
+    t0 = time.perf_counter()
+    step.lower(d0, d0.ctrl).compile()
+    return time.perf_counter() - t0
+
+
+def cold_compile_seconds(args: argparse.Namespace) -> float:
+    """Runs `--compile-only` in a child process with an empty compilation cache."""
+    with tempfile.TemporaryDirectory() as cache:
+        cmd = [sys.executable, "-m", "experiments.bench.bench_robot", "--compile-only"]
+        cmd += ["--variant", args.variant, "--contacts", args.contacts]
+        cmd += ["--solver", args.solver] if args.solver else []
+        env = dict(os.environ, SIRL_JAX_CACHE_DIR=cache, JAX_PLATFORMS="cpu")
+        out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
+        return float(out.strip().splitlines()[-1])
 
 
 def bench_c_single(model, robot, n_steps: int = 500) -> float:
@@ -131,6 +143,7 @@ def main() -> None:
     )
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--skip-compile", action="store_true", help="skip the cold compile")
+    parser.add_argument("--compile-only", action="store_true", help="print compile seconds, exit")
     args = parser.parse_args()
     enable_compilation_cache()
     model = h1.load_model(args.variant, args.contacts)
@@ -139,6 +152,9 @@ def main() -> None:
         model.opt.iterations, model.opt.ls_iterations = it, ls
         flags = model.opt.disableflags
         model.opt.disableflags = flags & ~_EULERDAMP if eulerdamp else flags | _EULERDAMP
+    if args.compile_only:
+        print(f"{compile_seconds(model):.1f}")
+        return
     robot = h1.Robot(model)
     mx = mjx.put_model(model)
     d0 = h1.keyframe_data(model, mx)
@@ -153,7 +169,7 @@ def main() -> None:
     )
     print(f"MuJoCo C, 1 thread: {c1:.0f} control steps/s")
     if not args.skip_compile:
-        print(f"cold compile of one control step (E=1): {compile_seconds(model):.0f} s")
+        print(f"cold compile of one control step (E=1): {cold_compile_seconds(args):.0f} s")
     print(
         "\n| E | MJX per-call (steps/s) | MJX scan (steps/s) | C rollout 2 threads | "
         "C 1 thread | MJX best / C 1 thread | first call (s) |"
