@@ -1,4 +1,4 @@
-"""The task registry: duplicate names refused, aliases resolve, unknown names list the valid ones."""
+"""The task registry: duplicates refused, aliases resolve, unknown names list the valid ones."""
 
 import pytest
 
