@@ -185,8 +185,9 @@ def make_train(config: Config, env: Env) -> Train:
             if use_target:
                 batch = batch.replace(return_ref=success_bar)
             agent_state, m = agent.update(agent_state, batch, key_update)
-            finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(m[n])) for n in update_names]))
-            sums = {n: sums[n] + jnp.mean(m[n]) for n in update_names}
+            means = [jnp.mean(m[n]) for n in update_names]
+            finite = jnp.isfinite(sum(means))  # a NaN or inf in any metric makes the sum one
+            sums = {n: sums[n] + v for n, v in zip(update_names, means, strict=True)}
             return agent_state, sums, bad + (~finite).astype(jnp.int32)
 
         sums0 = {n: jnp.zeros((), jnp.float32) for n in update_names}

@@ -29,6 +29,7 @@ def test_defaults_match_spec():
     assert (c.batch_size, c.num_bins, c.vmin, c.vmax, c.dropout) == (256, 101, -10, 10, 0.01)
     assert c.arch == (256, 512, 512, 2, 5)
     assert c.mpc and not c.episodic and c.entropy_form == "scaled"
+    assert c.termination_coef == 1.0
     s = c.sirl
     assert (s.enabled, s.beta, s.bc_form, s.g_source, s.return_kind) == (
         True,
@@ -75,6 +76,7 @@ def test_derived_values_not_written_back():
         (dict(num_q=1), "num_q"),
         (dict(rho=0.0), "rho"),
         (dict(plan_env_chunk=-1), "plan_env_chunk"),
+        (dict(termination_coef=-1.0), "termination_coef"),
     ],
 )
 def test_validation_names_field(kwargs, field):

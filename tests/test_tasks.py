@@ -5,8 +5,9 @@ in a `lax.scan` over E = 4 envs, with the `mjx.Model` as a jit argument, and run
 models: without gravity under the action that holds the keyframe pose (nothing can fall, so
 every episode must end by truncation at exactly `EPISODE` steps), and limp (every actuator's
 gain and bias zeroed, normal gravity), where the robot collapses and every task with a
-termination must terminate (sit and maze excepted: the chair or a block can hold the robot up);
-where the termination is a root height, it must fire exactly when the root is below it.
+termination must terminate, except where the scenery holds it up (sit: it falls back onto the
+chair and stays seated; maze: it can lean on the block behind it), which is checked; where the
+termination is a root height, it must fire exactly when the root is below it.
 Compiles dominate (about a minute each on 2 cores), so CI runs a
 representative subset and the rest is marked slow.
 """
@@ -17,13 +18,15 @@ import math
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 import pytest
 
 import sirl_jax.envs.tasks as tasks
 from sirl_jax.envs import TASKS, make
 from sirl_jax.envs.base import VecEnv
-from sirl_jax.envs.tasks.obstacles import maze_block_centres, pole_positions
+from sirl_jax.envs.tasks.obstacles import WALL_DISCOUNT, maze_block_centres, pole_positions
+from sirl_jax.envs.tasks.sit import CHAIR_POS
 from sirl_jax.envs.tasks.terrain import slide_boxes, stair_treads
 
 E = 4
@@ -31,8 +34,9 @@ EPISODE = 100  # a short time limit (2 s), long enough for a limp robot to colla
 EXTRA = 20
 NEVER_TERMINATE = ("reach", "crawl")
 # Scenery can hold a limp robot up: it falls back onto the chair and stays seated above the
-# 0.5 m termination height, or leans against a maze block with the root above 0.2 m.
+# 0.5 m termination height, or leans against the maze block behind it with the root above 0.2 m.
 CAUGHT_BY_SCENE = ("sit_simple", "sit_hard", "maze")
+SEAT_REACH = 0.35  # root xy to chair xy when seated: seat half-diagonal 0.30 + 0.05
 ROOT_Z_TERMINATION = {
     "stand": 0.2, "walk": 0.2, "run": 0.2, "hurdle": 0.2, "maze": 0.2,
     "sit_simple": 0.5, "sit_hard": 0.5, "pole": 0.5,
@@ -161,6 +165,7 @@ def _rollout(env):
             trace = {
                 "finite": finite,
                 "root_z": state.final_obs[:, 2],  # obs starts with qpos
+                "final_obs": state.final_obs,
                 "reward": state.reward,
                 "terminated": state.terminated,
                 "truncated": state.truncated,
@@ -229,14 +234,39 @@ def test_rollout(rollouts, task_id):
         assert limp["truncated"][EPISODE - 1].all()
     elif name not in CAUGHT_BY_SCENE:
         assert limp["terminated"].any(axis=0).all()
-    elif name == "maze":
-        assert limp["terminated"].any()
+    else:
+        _check_held_by_scene(env, name, limp)
     if name in ROOT_Z_TERMINATION:  # the termination is exactly HumanoidBench's height test
         for trace in (hold, limp):
             fell = trace["root_z"] < ROOT_Z_TERMINATION[name]
             np.testing.assert_array_equal(trace["terminated"], fell)
     if name.startswith("balance"):
         assert limp["terminated"][limp["root_z"] < 0.8].all()
+
+
+def _check_held_by_scene(env, name, limp):
+    """A limp env that never terminates within the episode is held up by the scenery."""
+    held = ~limp["terminated"][:EPISODE].any(axis=0)  # [E]
+    last = limp["final_obs"][EPISODE - 1]  # [E, O] the truncation step, before the reset
+    root = last[:, :3]
+    assert (root[held, 2] < 0.8).all()  # it did collapse (keyframe root z 0.98)
+    if name == "maze":  # leaning on a block: the block penalty is active
+        assert limp["terminated"].any()
+        # Sliding slowly down the block, the contact flickers (a step with dist >= 0 now and
+        # then), so ask for the penalty on most of the last 20 steps rather than on the last.
+        wall = limp["metrics"]["wall_collision_discount"][EPISODE - 20 : EPISODE, held]
+        touching = np.isclose(wall, WALL_DISCOUNT, rtol=1e-6)
+        assert (touching.mean(axis=0) >= 0.75).all(), touching.mean(axis=0)
+        return
+    if name == "sit_hard":  # the chair's free joint: its qpos is in the observation
+        joint = mujoco.mj_name2id(env.mj_model, mujoco.mjtObj.mjOBJ_JOINT, "free_chair")
+        adr = env.mj_model.jnt_qposadr[joint]
+        chair = last[:, adr : adr + 2]
+    else:
+        chair = np.broadcast_to(np.asarray(CHAIR_POS[:2]), root[:, :2].shape)
+    # seated: the root over the seat, above the 0.5 m termination height
+    assert (np.linalg.norm(root[held, :2] - chair[held], axis=1) < SEAT_REACH).all()
+    assert (root[held, 2] > 0.5).all()
 
 
 @pytest.mark.timeout(900)

@@ -76,8 +76,10 @@ def test_first_update_hand_values(setup):
         "pi_scale",
         "pi_entropy",
         "pi_log_std",
+        "termination_loss",
     }
     assert want <= set(m)
+    assert float(m["termination_loss"]) == 0.0  # not episodic: no head, metric kept at 0
     assert all(v.shape == () and bool(jnp.isfinite(v)) for v in m.values())
     # Polyak: target <- 0.99 target + 0.01 online (updated) Qs, on Q params only.
     want_t = polyak(state.target_qs, new.params["qs"], 0.01)
@@ -184,9 +186,9 @@ def test_bc_loglik_by_hand_and_per_dimension_scale():
         out = wm.pi(params, z, jax.random.PRNGKey(7))
         out2 = jax.tree_util.tree_map(lambda v: jnp.stack([v, v]), out)  # [H+1=2, ...]
         loglik, _ = wm.pi_log_prob(params, z, act)
-        bc = {"loglik": L.bc_term(wm, cfg, params["policy"], z[None], None, act[None], omega)}
+        bc = {"loglik": L.bc_term(cfg, out2, act[None], omega)}
         for f, c in mse.items():
-            bc[f] = L.bc_term(wm, c, params["policy"], z[None], out2, act[None], omega)
+            bc[f] = L.bc_term(c, out2, act[None], omega)
         return out, loglik, bc
 
     out, got, bc = run(jax.random.PRNGKey(5))

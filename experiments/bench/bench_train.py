@@ -102,10 +102,13 @@ def _parts(train: Train, state, k: int, e: int, n_upd: int):
 
     @jax.jit
     def update_part(agent_state):
-        def body(i, s):
-            return agent.update(s, batch, jax.random.fold_in(key, i))[0]
+        # The metrics are part of an update's work: sum them so that XLA cannot drop them.
+        def body(i, carry):
+            s, total = carry
+            s, m = agent.update(s, batch, jax.random.fold_in(key, i))
+            return s, total + sum(jnp.mean(v) for v in m.values())
 
-        return jax.lax.fori_loop(0, k * n_upd, body, agent_state)
+        return jax.lax.fori_loop(0, k * n_upd, body, (agent_state, jnp.zeros(())))
 
     return {
         "env step": (env_part, (state.env,)),

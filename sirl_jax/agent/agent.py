@@ -19,11 +19,18 @@ from sirl_jax.agent.world_model import make_world_model
 from sirl_jax.types import Batch
 
 WM_KEYS = ("encoder", "dynamics", "reward", "qs")
+"""World-model params (one optimiser, one global clip); 'termination' is added when episodic."""
+
+
+def wm_keys(cfg: AgentConfig) -> tuple[str, ...]:
+    """The params entries trained by the world-model optimiser for this config."""
+    return WM_KEYS + (("termination",) if cfg.episodic else ())
 
 
 @struct.dataclass
 class AgentState:
-    """params: {'encoder', 'dynamics', 'reward', 'policy', 'qs'}; target_qs: Polyak copy of 'qs';
+    """params: {'encoder', 'dynamics', 'reward', 'policy', 'qs'} (+ 'termination' if episodic);
+    target_qs: Polyak copy of 'qs';
     wm_opt_state / pi_opt_state: Adam states; scale: [] running Q scale S."""
 
     params: dict
@@ -93,6 +100,7 @@ def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length
     if env_chunk is None:  # measured: sequential envs are faster than one big vmap on CPU
         env_chunk = 1 if jax.default_backend() == "cpu" else 0
     wm = make_world_model(cfg, action_size)
+    keys = wm_keys(cfg)
     wm_tx = _wm_optimizer(cfg)
     pi_tx = optax.chain(
         optax.clip_by_global_norm(cfg.grad_clip_norm), optax.adam(cfg.lr, eps=cfg.pi_adam_eps)
@@ -108,13 +116,14 @@ def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length
             reward=wm.reward,
             pi_sample=lambda p, z, k: wm.pi(p, z, k).action,
             q_avg=lambda p, z, a, k: wm.q_pair(p["qs"], z, a, k, "avg", None),
+            termination=wm.termination_logit,  # None unless episodic
         ),
         env_chunk,
     )
 
     def init(key: jax.Array) -> AgentState:
         params = init_params(cfg, obs_size, action_size, key)
-        wm_params = {k: params[k] for k in WM_KEYS}
+        wm_params = {k: params[k] for k in keys}
         return AgentState(
             params=params,
             target_qs=jax.tree_util.tree_map(jnp.copy, params["qs"]),
@@ -126,7 +135,7 @@ def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length
     def update(state: AgentState, batch: Batch, key: jax.Array) -> tuple[AgentState, dict]:
         """One gradient step: world model; policy on detached latents and updated Qs; Polyak."""
         k_wm, k_pi = jax.random.split(key)
-        wm_params = {k: state.params[k] for k in WM_KEYS}
+        wm_params = {k: state.params[k] for k in keys}
         pi_params = state.params["policy"]
         grad_fn = jax.value_and_grad(
             lambda p: losses.world_model_loss(

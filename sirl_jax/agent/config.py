@@ -127,7 +127,10 @@ class AgentConfig:
     discount_min: float = 0.95
     discount_max: float = 0.995
     episodic: bool = False
-    """True: multiply the bootstrap by (1 - terminated) in the TD target (no termination head)."""
+    """True: (1 - terminated) in the TD target, a termination head trained with BCE, and MPPI
+    masking of rewards / terminal Q after a predicted termination (spec §1.2, §2.3, §3)."""
+    termination_coef: float = 1.0
+    """Weight of the termination BCE in the world-model loss (used only when episodic)."""
     sirl: SirlConfig = dataclasses.field(default_factory=SirlConfig)
 
     def __post_init__(self) -> None:
@@ -182,7 +185,13 @@ class AgentConfig:
             self.discount,
             "None or in (0, 1]",
         )
-        for name in ("consistency_coef", "reward_coef", "value_coef", "entropy_coef"):
+        for name in (
+            "consistency_coef",
+            "reward_coef",
+            "value_coef",
+            "entropy_coef",
+            "termination_coef",
+        ):
             _check(getattr(self, name) >= 0, name, getattr(self, name), ">= 0")
         arch = self.arch
         _check(

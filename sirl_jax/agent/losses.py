@@ -10,7 +10,12 @@ import jax.numpy as jnp
 
 from sirl_jax.agent import math as am
 from sirl_jax.agent.config import AgentConfig, SirlConfig
-from sirl_jax.agent.world_model import LOG_2PI, WorldModel
+from sirl_jax.agent.world_model import (
+    LOG_2PI,
+    PolicyOutput,
+    WorldModel,
+    squashed_log_likelihood,
+)
 from sirl_jax.types import Batch
 
 sg = jax.lax.stop_gradient
@@ -27,6 +32,11 @@ def td_target(
     """y = r + gamma * (1 - d) * q_next; the mask only when episodic (HB bootstraps falls)."""
     cont = 1.0 - terminated if episodic else 1.0
     return reward + discount * cont * q_next
+
+
+def bce_with_logits(logits: jax.Array, targets: jax.Array) -> jax.Array:
+    """Elementwise -[d log sigmoid(x) + (1 - d) log(1 - sigmoid(x))], overflow-free form."""
+    return jnp.maximum(logits, 0.0) - logits * targets + jnp.log1p(jnp.exp(-jnp.abs(logits)))
 
 
 def update_scale(scale: jax.Array, q0: jax.Array, tau: float) -> jax.Array:
@@ -57,7 +67,11 @@ def world_model_loss(
     batch: Batch,
     key: jax.Array,
 ) -> tuple[jax.Array, tuple[jax.Array, dict]]:
-    """L = c_c * L_c + c_r * L_r + c_q * L_q (spec §2.3).
+    """L = c_c * L_c + c_r * L_r + c_q * L_q (+ c_d * L_d when episodic) (spec §2.3).
+
+    L_d = mean over H and B of BCE(termination(z_{t+1}), d_t), t = 0..H-1, on the rollout
+    latents z_1..z_H with gradients (unweighted by rho, as in the reference). The metric
+    'termination_loss' is 0 when not episodic, so the metric set is the same either way.
 
     Returns:
       loss []; aux = (rollout latents z_0..z_H [H+1, B, Z] with gradients, metrics).
@@ -91,34 +105,35 @@ def world_model_loss(
     l_r = jnp.sum(w * reward_ce.mean(axis=1)) / H
     l_q = jnp.sum(w * value_ce.mean(axis=2).sum(axis=0)) / (H * value_ce.shape[0])
     loss = cfg.consistency_coef * l_c + cfg.reward_coef * l_r + cfg.value_coef * l_q
+    if cfg.episodic:
+        d_logits = wm.termination_logit(params, z_roll)  # [H, B] on z_1..z_H
+        l_d = jnp.mean(bce_with_logits(d_logits, batch.terminated.astype(d_logits.dtype)))
+        loss = loss + cfg.termination_coef * l_d
+    else:
+        l_d = jnp.zeros(())
     metrics = {
         "consistency_loss": l_c,
         "reward_loss": l_r,
         "value_loss": l_q,
+        "termination_loss": l_d,
         "wm_loss": loss,
         "td_target_mean": jnp.mean(y),
     }
     return loss, (zs, metrics)
 
 
-def bc_term(
-    wm: WorldModel,
-    cfg: AgentConfig,
-    policy_params: dict,
-    zs: jax.Array,
-    pi_out,
-    actions: jax.Array,
-    omega: jax.Array,
-) -> jax.Array:
+def bc_term(cfg: AgentConfig, pi_out: PolicyOutput, actions: jax.Array, omega: jax.Array):
     """Self-imitative BC per step: [H, B] loss terms (to be rho-weighted).
 
+    pi_out is the policy-loss forward pass on z_0..z_H ([H+1, B, ...]); the term reuses its
+    first H steps instead of running the policy network again.
     loglik: -omega * log pi(a_t | z_t) / A; the mean over action dimensions keeps the term at the
     O(1) scale of Q/S (a sum over 61 dims of a log density reaches hundreds). mse_*: omega * MSE.
     """
     A = actions.shape[-1]
     form = cfg.sirl.bc_form
     if form == "loglik":
-        log_lik, _ = wm.pi_log_prob({"policy": policy_params}, zs, actions)
+        log_lik = squashed_log_likelihood(pi_out.mu[:-1], pi_out.log_std[:-1], actions)
         per_step = -log_lik / A
     elif form == "mse_sample":
         per_step = jnp.mean((pi_out.action[:-1] - actions) ** 2, axis=-1)
@@ -170,7 +185,7 @@ def policy_loss(
     loss = rl
     if cfg.sirl.enabled:
         omega = sirl_weight(batch.episode_return, batch.return_ref, cfg.sirl)
-        bc = bc_term(wm, cfg, policy_params, zs[:-1], out, batch.action, omega)
+        bc = bc_term(cfg, out, batch.action, omega)
         bc_loss = jnp.sum(w[:-1] * jnp.mean(bc, axis=1)) / Hp1
         loss = rl + bc_loss
         metrics["sirl_loss"] = bc_loss

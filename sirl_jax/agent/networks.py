@@ -3,7 +3,8 @@
 NormedLinear = Dense -> (Dropout) -> LayerNorm(eps 1e-5) -> activation. Kernels use PyTorch's
 `trunc_normal_(std=0.02)`: cut at +-2 absolute = +-100 std (flax's default cut at +-2 std would
 shrink the std to 0.0176), biases 0, LayerNorm 1/0. The last Dense of the reward and Q heads
-is zero-initialised.
+is zero-initialised; the termination head's (episodic only) is not, as in the reference, where
+only the reward and Q output layers are zeroed after the global trunc-normal init.
 The Q ensemble is one member module whose params are stacked on a leading [num_q] axis and
 applied with jax.vmap, so any subset of members (e.g. the random pair) can be gathered and run.
 """
@@ -77,34 +78,47 @@ class MLP(nn.Module):
 
 
 def make_modules(cfg: AgentConfig, action_size: int) -> dict[str, MLP]:
-    """The five modules of the world model + policy prior, keyed like the params dict."""
+    """The modules of the world model + policy prior, keyed like the params dict.
+
+    'termination' (z -> mlp_dim -> mlp_dim -> 1 logit) exists only when cfg.episodic.
+    """
     arch = cfg.arch
     enc_hidden = [arch.enc_dim] * max(arch.num_enc_layers - 1, 1)
     mlp2 = [arch.mlp_dim, arch.mlp_dim]
     sd = cfg.simnorm_dim
-    return {
+    mods = {
         "encoder": MLP(enc_hidden, arch.latent_dim, simnorm_out=True, simnorm_dim=sd),
         "dynamics": MLP(mlp2, arch.latent_dim, simnorm_out=True, simnorm_dim=sd),
         "reward": MLP(mlp2, cfg.num_bins, zero_last=True),
         "policy": MLP(mlp2, 2 * action_size),
         "q": MLP(mlp2, cfg.num_bins, dropout=cfg.dropout, zero_last=True),
     }
+    if cfg.episodic:
+        mods["termination"] = MLP(mlp2, 1)
+    return mods
 
 
 def init_params(cfg: AgentConfig, obs_size: int, action_size: int, key: jax.Array) -> dict:
-    """Initial params {'encoder', 'dynamics', 'reward', 'policy', 'qs'}; 'qs' is [num_q, ...]."""
+    """Initial params {'encoder', 'dynamics', 'reward', 'policy', 'qs'}; 'qs' is [num_q, ...].
+
+    With cfg.episodic a 'termination' entry is added, from its own key fold_in(key, 5), so the
+    other modules get the same values as in the non-episodic init.
+    """
     mods = make_modules(cfg, action_size)
     z = jnp.zeros((1, cfg.arch.latent_dim))
     za = jnp.zeros((1, cfg.arch.latent_dim + action_size))
     k_enc, k_dyn, k_rew, k_pi, k_q = jax.random.split(key, 5)
     q_keys = jax.random.split(k_q, cfg.arch.num_q)
-    return {
+    params = {
         "encoder": mods["encoder"].init(k_enc, jnp.zeros((1, obs_size)))["params"],
         "dynamics": mods["dynamics"].init(k_dyn, za)["params"],
         "reward": mods["reward"].init(k_rew, za)["params"],
         "policy": mods["policy"].init(k_pi, z)["params"],
         "qs": jax.vmap(lambda k: mods["q"].init(k, za)["params"])(q_keys),
     }
+    if cfg.episodic:
+        params["termination"] = mods["termination"].init(jax.random.fold_in(key, 5), z)["params"]
+    return params
 
 
 def count_params(tree) -> int:

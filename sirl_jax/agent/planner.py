@@ -31,6 +31,7 @@ class PlannerModel(NamedTuple):
     reward: Callable  # (params, z[N, Z], a[N, A]) -> [N]
     pi_sample: Callable  # (params, z[N, Z], key) -> a[N, A], a stochastic policy sample
     q_avg: Callable  # (params, z[N, Z], a[N, A], key) -> [N]
+    termination: Callable | None = None  # (params, z[N, Z]) -> logit [N]; None: no masking
 
 
 class Planner(NamedTuple):
@@ -41,20 +42,44 @@ class Planner(NamedTuple):
 def estimate_value(
     model: PlannerModel, params, z: jax.Array, actions: jax.Array, key: jax.Array, discount: float
 ) -> jax.Array:
-    """V = sum_t g^t R(z_t, a_t) + g^H Qavg(z_H, a_H ~ pi); z [N, Z], actions [H, N, A] -> [N]."""
+    """V = sum_t g^t R(z_t, a_t) + g^H Qavg(z_H, a_H ~ pi); z [N, Z], actions [H, N, A] -> [N].
+
+    With model.termination (episodic), a sample whose predicted P(terminal | z_{t+1}) > 0.5
+    keeps R(z_t, a_t), the reward of the transition into the terminal state, and drops every
+    later reward and the terminal Q (the reference's (1 - termination) mask, set after the
+    reward of step t is added and never cleared).
+    """
     H = actions.shape[0]
     k_pi, k_q = jax.random.split(key)
     gammas = discount ** jnp.arange(H, dtype=jnp.float32)
+    n = z.shape[0]
 
-    def step(carry, xs):
-        z_t, ret = carry
-        a_t, g_t = xs
-        ret = ret + g_t * model.reward(params, z_t, a_t)
-        return (model.next(params, z_t, a_t), ret), None
+    if model.termination is None:
 
-    (z_H, ret), _ = jax.lax.scan(step, (z, jnp.zeros(z.shape[0])), (actions, gammas))
+        def step(carry, xs):
+            z_t, ret = carry
+            a_t, g_t = xs
+            ret = ret + g_t * model.reward(params, z_t, a_t)
+            return (model.next(params, z_t, a_t), ret), None
+
+        (z_H, ret), _ = jax.lax.scan(step, (z, jnp.zeros(n)), (actions, gammas))
+        alive = None
+    else:
+
+        def step(carry, xs):
+            z_t, ret, alive = carry  # alive [N]: 1.0 until a termination is predicted
+            a_t, g_t = xs
+            ret = ret + g_t * alive * model.reward(params, z_t, a_t)
+            z_next = model.next(params, z_t, a_t)
+            ended = jax.nn.sigmoid(model.termination(params, z_next)) > 0.5
+            return (z_next, ret, jnp.where(ended, 0.0, alive)), None
+
+        (z_H, ret, alive), _ = jax.lax.scan(step, (z, jnp.zeros(n), jnp.ones(n)), (actions, gammas))
     a_H = model.pi_sample(params, z_H, k_pi)
-    return ret + discount**H * model.q_avg(params, z_H, a_H, k_q)
+    q = model.q_avg(params, z_H, a_H, k_q)
+    if alive is not None:
+        q = alive * q
+    return ret + discount**H * q
 
 
 def mppi_update(

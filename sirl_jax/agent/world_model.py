@@ -1,6 +1,7 @@
 """The TD-MPC2 world model as pure functions over a params dict (spec §1.2-§1.4).
 
-params = {'encoder', 'dynamics', 'reward', 'policy', 'qs'} from `networks.init_params`.
+params = {'encoder', 'dynamics', 'reward', 'policy', 'qs'} (+ 'termination' when episodic) from
+`networks.init_params`.
 Shapes: leading batch dims [...] are free; Z latent, A action, O observation.
 """
 
@@ -17,6 +18,17 @@ from sirl_jax.agent.config import AgentConfig
 from sirl_jax.agent.networks import make_modules
 
 LOG_2PI = math.log(2.0 * math.pi)
+
+
+def squashed_log_likelihood(mu: jax.Array, log_std: jax.Array, a: jax.Array) -> jax.Array:
+    """log pi(a) of a given action a in [-1, 1] under tanh(N(mu, exp(log_std))) ([..., A] -> [...]).
+
+    a is clipped to +-(1 - 1e-6) before arctanh; the tanh correction uses the same 1e-6 as `pi`.
+    """
+    a = jnp.clip(a, -1.0 + 1e-6, 1.0 - 1e-6)
+    x = (jnp.arctanh(a) - mu) * jnp.exp(-log_std)
+    lp_g = jnp.sum(-0.5 * x**2 - log_std, axis=-1) - 0.5 * LOG_2PI * a.shape[-1]
+    return lp_g - jnp.sum(jnp.log(jnp.maximum(0.0, 1.0 - a**2) + 1e-6), axis=-1)
 
 
 class PolicyOutput(NamedTuple):
@@ -42,6 +54,7 @@ class WorldModel(NamedTuple):
     pi_log_prob: callable  # (params, z, a) -> (log-likelihood [...] of a, log_std [..., A])
     q_logits: callable  # (qs_params, z, a, key | None) -> [num_q, ..., num_bins]
     q_pair: callable  # (qs_params, z, a, key, mode, dropout_key | None) -> [...]
+    termination_logit: callable | None = None  # (params, z) -> [...] logit; None unless episodic
 
 
 def make_world_model(cfg: AgentConfig, action_size: int) -> WorldModel:
@@ -81,11 +94,7 @@ def make_world_model(cfg: AgentConfig, action_size: int) -> WorldModel:
     def pi_log_prob(params, z, a):
         # Log-likelihood of a given action a in [-1, 1] under the squashed Gaussian (spec §5.2).
         mu, log_std = pi_head(params, z)
-        a = jnp.clip(a, -1.0 + 1e-6, 1.0 - 1e-6)
-        u = jnp.arctanh(a)
-        x = (u - mu) * jnp.exp(-log_std)
-        lp_g = jnp.sum(-0.5 * x**2 - log_std, axis=-1) - 0.5 * LOG_2PI * action_size
-        return lp_g - jnp.sum(jnp.log(jnp.maximum(0.0, 1.0 - a**2) + 1e-6), axis=-1), log_std
+        return squashed_log_likelihood(mu, log_std, a), log_std
 
     def q_member(q_params, za, dropout_key):
         rngs = None if dropout_key is None else {"dropout": dropout_key}
@@ -116,4 +125,18 @@ def make_world_model(cfg: AgentConfig, action_size: int) -> WorldModel:
             return 0.5 * (q[0] + q[1])
         raise ValueError(f"mode={mode!r} is not allowed; choose 'min' or 'avg'")
 
-    return WorldModel(encode, next_, reward_logits, reward, pi, pi_log_prob, q_logits, q_pair)
+    def termination_logit(params, z):
+        # Logit of P(terminated) of the state whose latent is z; sigmoid > 0.5 counts as terminal.
+        return apply("termination", params, z)[..., 0]
+
+    return WorldModel(
+        encode,
+        next_,
+        reward_logits,
+        reward,
+        pi,
+        pi_log_prob,
+        q_logits,
+        q_pair,
+        termination_logit if cfg.episodic else None,
+    )
