@@ -334,6 +334,62 @@ def _loop(run: _Run, state) -> int:
     return EXIT_OK
 
 
+def _timed_cost_line(trainer, state) -> str:
+    """Times one act and one update call of this run's agent and says what the rest costs.
+
+    Used on CPU-only machines for non-tiny models, before the first chunk: compiling both
+    takes seconds, and the answer (days, for the reference config) is worth having up front.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    from sirl_jax.types import Batch
+
+    agent, t = trainer.agent, trainer.config.train
+    cfg = agent.cfg
+    H, B = cfg.horizon, cfg.batch_size
+    batch = Batch(
+        obs=jnp.zeros((H + 1, B, agent.obs_size)),
+        action=jnp.zeros((H, B, agent.action_size)),
+        reward=jnp.zeros((H, B)),
+        terminated=jnp.zeros((H, B)),
+        episode_return=jnp.zeros((B,)),
+        return_ref=jnp.zeros(()),
+    )
+    key = jax.random.PRNGKey(0)
+    if cfg.mpc:
+        act, act_args = jax.jit(agent.plan), (state.agent, state.planner, state.env.obs,
+                                              state.env.first, key)  # fmt: skip
+    else:
+        act, act_args = jax.jit(agent.act_policy), (state.agent, state.env.obs, key)
+
+    def seconds(fn, args) -> float:
+        jax.block_until_ready(fn(*args))  # compile and warm up
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        return time.perf_counter() - t0
+
+    t_act = seconds(act, act_args)
+    t_update = seconds(jax.jit(agent.update), (state.agent, batch, key))
+    done, planning = (int(x) for x in jax.device_get((state.env_steps, state.planning)))
+    remaining = max(t.steps - done, 0)
+    cost = prog.run_cost_seconds(
+        remaining,
+        seed_steps_left=0 if planning else max(trainer.seed_steps - done, 0),
+        num_envs=t.num_envs,
+        utd=t.utd,
+        pretrain_updates_left=0 if planning else trainer.pretrain_updates,
+        act_seconds=t_act,
+        update_seconds=t_update,
+    )
+    what = "plan" if cfg.mpc else "policy"
+    return (
+        f"CPU only: about {prog.format_duration(cost)} of agent compute for the {remaining:,} "
+        f"steps left (one {what} call for {t.num_envs} env(s) {t_act:.2f} s, one update "
+        f"{t_update:.2f} s, measured now); use --preset smoke or a GPU"
+    )
+
+
 def _check_resume_step(ckpt: Checkpointer, step: int | None) -> None:
     later = [s for s in ckpt.steps() if step is not None and s > step]
     if later:
@@ -378,10 +434,10 @@ def train(args: TrainArgs) -> int:
     buffer = getattr(trainer, "buffer", None)
     line = buffer.describe() if hasattr(buffer, "describe") else f"buffer: {nbytes / 1e9:.3f} GB"
     print(runlog.describe_run(config, spec, line, run_dir))
-    if jax.default_backend() == "cpu" and config.agent.model_size != "tiny":
-        print(f"CPU only: a {config.agent.model_size} model for {config.train.steps:,} steps "
-              "takes days here; a cost estimate follows after two training chunks (after the "
-              "seed phase); use --preset smoke or a GPU")  # fmt: skip
+    cpu_warning = jax.default_backend() == "cpu" and config.agent.model_size != "tiny"
+    if cpu_warning:
+        print(f"CPU only: a {config.agent.model_size} model is GPU-sized; timing one plan and "
+              "one update to estimate the cost...", flush=True)  # fmt: skip
     check_buffer_fits(nbytes)
     run_dir.mkdir(parents=True, exist_ok=True)
     ckpt = Checkpointer(run_dir / "checkpoints", max_to_keep=args.keep)
@@ -410,6 +466,8 @@ def train(args: TrainArgs) -> int:
             if saved is not None:
                 log.drop_after(saved)
             initial = int(jax.device_get(state.env_steps))
+            if cpu_warning:
+                print(_timed_cost_line(trainer, state), flush=True)
             bar = prog.Progress(config.train.steps, initial, enabled=args.progress)
             return _loop(_Run(config, args, trainer, ckpt, log, bar, saved), state)
         finally:

@@ -251,6 +251,30 @@ def test_metric_mean_and_schedule():
     ]
 
 
+def test_run_cost_by_hand():
+    # 10k steps left, 2k of them random seed steps: 8k / 4 envs = 2000 vectorised acting steps
+    # (2000 x 0.3 s) and 2000 x 4 x 0.5 + 2000 pretraining = 6000 updates (6000 x 0.1 s).
+    cost = progress.run_cost_seconds(10_000, 2_000, 4, 0.5, 2_000, 0.3, 0.1)
+    assert cost == pytest.approx(600.0 + 600.0)
+    assert progress.run_cost_seconds(1_000, 2_000, 4, 0.5, 2_000, 0.3, 0.1) == pytest.approx(200.0)
+    assert progress.run_cost_seconds(0, 0, 1, 1.0, 0, 0.3, 0.1) == 0.0
+    assert progress.format_duration(1.2e6) == "13.9 days"
+
+
+@pytest.mark.timeout(300)
+def test_cpu_run_of_a_gpu_sized_model_states_its_cost_first(tmp_path, capsys, monkeypatch):
+    """A non-tiny model on CPU: one plan and one update are timed and the cost is printed
+    before the first chunk (the loop itself is stubbed out: only the up-front line matters)."""
+    monkeypatch.setattr(cli, "_loop", lambda run, state: cli.EXIT_OK)
+    argv = ["train", "--preset", "smoke", "--model-size", "1M", "--steps", "4000",
+            "--num-envs", "2", "--no-progress", "--run-dir", str(tmp_path / "r")]  # fmt: skip
+    assert cli.main(argv) == 0
+    out = capsys.readouterr().out
+    line = next(li for li in out.splitlines() if "of agent compute" in li)
+    assert "for the 4,000 steps left (one plan call for 2 env(s)" in line, line
+    assert "one update" in line and "use --preset smoke or a GPU" in line, line
+
+
 # ---------------------------------------------------------------- failures (toy train)
 
 
