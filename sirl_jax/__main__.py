@@ -1,5 +1,5 @@
 """`python -m sirl_jax ...`: see `sirl_jax.cli` and docs/cli.md."""
 
-from sirl_jax.cli import main
+from sirl_jax.cli import run
 
-raise SystemExit(main())
+run()

@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -433,8 +434,13 @@ def train(args: TrainArgs) -> int:
     nbytes = _tree_nbytes(jax.eval_shape(trainer.init, key).buffer)
     buffer = getattr(trainer, "buffer", None)
     line = buffer.describe() if hasattr(buffer, "describe") else f"buffer: {nbytes / 1e9:.3f} GB"
-    print(runlog.describe_run(config, spec, line, run_dir))
-    cpu_warning = jax.default_backend() == "cpu" and config.agent.model_size != "tiny"
+    iterations = getattr(getattr(trainer, "agent", None), "iterations", None)
+    print(runlog.describe_run(config, spec, line, run_dir, iterations))
+    cpu_warning = (
+        jax.default_backend() == "cpu"
+        and config.agent.model_size != "tiny"
+        and hasattr(trainer, "agent")  # a trainer without an agent (tests) has nothing to time
+    )
     if cpu_warning:
         print(f"CPU only: a {config.agent.model_size} model is GPU-sized; timing one plan and "
               "one update to estimate the cost...", flush=True)  # fmt: skip
@@ -574,5 +580,21 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_ABORTED
 
 
+def run() -> None:
+    """Process entry point (`python -m sirl_jax`, `sirl-jax`): exits with `main`'s code.
+
+    After a second Ctrl-C the process leaves at once (`os._exit`): a normal interpreter exit
+    would wait for the XLA computation still running the interrupted chunk (on CPU, a chunk
+    with the pretraining updates takes half an hour). Checkpoints are written to a temporary
+    directory and renamed when complete, so nothing saved is lost by not waiting.
+    """
+    code = main()
+    if code == EXIT_ABORTED:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    raise SystemExit(code)
+
+
 __all__ = ["RESUME_MUTABLE", "EvalArgs", "TrainArgs", "TrainingFailure", "UsageError", "main",
-           "parse_train_args"]  # fmt: skip
+           "parse_train_args", "run"]  # fmt: skip

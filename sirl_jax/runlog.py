@@ -262,11 +262,19 @@ class RunLog:
             self._wandb.finish()
 
 
-def describe_run(config: Any, spec: Any, buffer_line: str, run_dir: Path) -> str:
-    """The resolved-config lines printed before a run starts (config: a `Config`)."""
+def describe_run(
+    config: Any, spec: Any, buffer_line: str, run_dir: Path, iterations: int | None = None
+) -> str:
+    """The resolved-config lines printed before a run starts (config: a `Config`).
+
+    iterations: the MPPI iterations the agent runs (`Agent.iterations`: +2 when the action
+    size is >= 20); default: the config's base count.
+    """
     import jax
 
     t, a = config.train, config.agent
+    its = a.iterations if iterations is None else iterations
+    its_text = f"{its}" if its == a.iterations else f"{its} ({a.iterations} + 2 for A >= 20)"
     arch = a.arch
     sirl = (f"TDMPBC beta={a.sirl.beta:g} G={a.sirl.g_source} ({a.sirl.bc_form})"
             if a.sirl.enabled else "plain TD-MPC2 (no BC term)")  # fmt: skip
@@ -276,7 +284,7 @@ def describe_run(config: Any, spec: Any, buffer_line: str, run_dir: Path) -> str
         f"task {spec.id} (T={spec.episode_length}, success bar {bar}), seed {t.seed}, "
         f"{t.steps:,} env steps, E={t.num_envs} x K={t.chunk_steps} per call, utd {t.utd:g}",
         f"agent: {a.model_size} (enc {arch.enc_dim}, mlp {arch.mlp_dim}, latent "
-        f"{arch.latent_dim}, {arch.num_q} Qs), H={a.horizon}, MPPI {a.iterations} it x "
+        f"{arch.latent_dim}, {arch.num_q} Qs), H={a.horizon}, MPPI {its_text} it x "
         f"{a.num_samples} samples, batch {a.batch_size}, {sirl}",
         buffer_line,
         f"run dir {run_dir}: eval every {every(t.eval_every)}, checkpoint every "
