@@ -56,6 +56,20 @@ def update_flops(cfg: AgentConfig, obs: int, act: int) -> int:
     return fwd_nograd + 3 * fwd_grad + 3 * pi_grad + 2 * q_input_grad
 
 
+def synthetic_batch(cfg: AgentConfig, obs: int, act: int, key: jax.Array) -> Batch:
+    """A replay batch of the config's H and B with random observations and actions."""
+    H, B = cfg.horizon, cfg.batch_size
+    k_obs, k_act = jax.random.split(key)
+    return Batch(
+        obs=jax.random.normal(k_obs, (H + 1, B, obs)),
+        action=jnp.tanh(jax.random.normal(k_act, (H, B, act))),
+        reward=jnp.ones((H, B)),
+        terminated=jnp.zeros((H, B)),
+        episode_return=jnp.linspace(0.0, 100.0, B),
+        return_ref=jnp.array(100.0),
+    )
+
+
 def time_calls(fn, args, reps: int) -> float:
     """Median wall ms of `reps` calls (after one warm call)."""
     jax.block_until_ready(fn(*args))
@@ -95,14 +109,7 @@ def main() -> None:
     state = agent.init(jax.random.PRNGKey(0))
     H, B, Z = cfg.horizon, cfg.batch_size, cfg.arch.latent_dim
     k = jax.random.PRNGKey(1)
-    batch = Batch(
-        obs=jax.random.normal(k, (H + 1, B, O)),
-        action=jnp.tanh(jax.random.normal(k, (H, B, A))),
-        reward=jnp.ones((H, B)),
-        terminated=jnp.zeros((H, B)),
-        episode_return=jnp.linspace(0.0, 100.0, B),
-        return_ref=jnp.array(100.0),
-    )
+    batch = synthetic_batch(cfg, O, A, k)
     print(
         f"backend={jax.default_backend()} devices={jax.devices()} model={args.model_size} "
         f"O={O} A={A} iterations={agent.iterations}"

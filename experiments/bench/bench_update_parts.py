@@ -26,7 +26,12 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from experiments.bench.bench_agent import matmul_gflops, module_flops, update_flops
+from experiments.bench.bench_agent import (
+    matmul_gflops,
+    module_flops,
+    synthetic_batch,
+    update_flops,
+)
 from sirl_jax.agent import AgentConfig, make_agent
 from sirl_jax.agent import losses as L
 from sirl_jax.agent import math as am
@@ -39,16 +44,7 @@ O, A = 151, 61
 
 
 def _batch(cfg: AgentConfig) -> Batch:
-    H, B = cfg.horizon, cfg.batch_size
-    k1, k2 = jax.random.split(jax.random.PRNGKey(1))
-    return Batch(
-        obs=jax.random.normal(k1, (H + 1, B, O)),
-        action=jnp.tanh(jax.random.normal(k2, (H, B, A))),
-        reward=jnp.ones((H, B)),
-        terminated=jnp.zeros((H, B)),
-        episode_return=jnp.linspace(0.0, 100.0, B),
-        return_ref=jnp.array(100.0),
-    )
+    return synthetic_batch(cfg, O, A, jax.random.PRNGKey(1))
 
 
 def _update_case(cfg: AgentConfig, relu: bool = False):
