@@ -344,20 +344,12 @@ def _timed_cost_line(trainer, state) -> str:
     import jax
     import jax.numpy as jnp
 
-    from sirl_jax.types import Batch
-
     agent, t = trainer.agent, trainer.config.train
     cfg = agent.cfg
-    H, B = cfg.horizon, cfg.batch_size
-    batch = Batch(
-        obs=jnp.zeros((H + 1, B, agent.obs_size)),
-        action=jnp.zeros((H, B, agent.action_size)),
-        reward=jnp.zeros((H, B)),
-        terminated=jnp.zeros((H, B)),
-        episode_return=jnp.zeros((B,)),
-        return_ref=jnp.zeros(()),
-    )
     key = jax.random.PRNGKey(0)
+    # A zero batch of the buffer's own sample shapes (the buffer is still empty).
+    shapes = jax.eval_shape(trainer.buffer.sample, state.buffer, key)
+    batch = jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), shapes)
     if cfg.mpc:
         act, act_args = jax.jit(agent.plan), (state.agent, state.planner, state.env.obs,
                                               state.env.first, key)  # fmt: skip
@@ -434,13 +426,10 @@ def train(args: TrainArgs) -> int:
     nbytes = _tree_nbytes(jax.eval_shape(trainer.init, key).buffer)
     buffer = getattr(trainer, "buffer", None)
     line = buffer.describe() if hasattr(buffer, "describe") else f"buffer: {nbytes / 1e9:.3f} GB"
-    iterations = getattr(getattr(trainer, "agent", None), "iterations", None)
-    print(runlog.describe_run(config, spec, line, run_dir, iterations))
-    cpu_warning = (
-        jax.default_backend() == "cpu"
-        and config.agent.model_size != "tiny"
-        and hasattr(trainer, "agent")  # a trainer without an agent (tests) has nothing to time
-    )
+    agent = getattr(trainer, "agent", None)  # like `buffer`: a stand-in trainer may lack one
+    print(runlog.describe_run(config, spec, line, run_dir, getattr(agent, "iterations", None)))
+    on_cpu = jax.default_backend() == "cpu"
+    cpu_warning = agent is not None and on_cpu and config.agent.model_size != "tiny"
     if cpu_warning:
         print(f"CPU only: a {config.agent.model_size} model is GPU-sized; timing one plan and "
               "one update to estimate the cost...", flush=True)  # fmt: skip

@@ -35,7 +35,7 @@ from experiments.bench.bench_agent import (
 from sirl_jax.agent import AgentConfig, make_agent
 from sirl_jax.agent import losses as L
 from sirl_jax.agent import math as am
-from sirl_jax.agent.agent import WM_KEYS, _wm_optimizer
+from sirl_jax.agent.agent import _wm_optimizer, wm_keys
 from sirl_jax.agent.networks import NormedLinear
 from sirl_jax.agent.world_model import make_world_model
 from sirl_jax.types import Batch
@@ -63,7 +63,7 @@ def _piece_cases(cfg: AgentConfig) -> dict[str, tuple]:
     state = agent.init(jax.random.PRNGKey(0))
     batch, key = _batch(cfg), jax.random.PRNGKey(2)
     params = state.params
-    wm_params = {n: params[n] for n in WM_KEYS}
+    wm_params = {n: params[n] for n in wm_keys(cfg)}
     H, B, Z = cfg.horizon, cfg.batch_size, cfg.arch.latent_dim
     zs = jax.random.uniform(key, (H + 1, B, Z))
     y = jnp.ones((H, B))

@@ -54,31 +54,20 @@ def estimate_value(
     gammas = discount ** jnp.arange(H, dtype=jnp.float32)
     n = z.shape[0]
 
-    if model.termination is None:
-
-        def step(carry, xs):
-            z_t, ret = carry
-            a_t, g_t = xs
-            ret = ret + g_t * model.reward(params, z_t, a_t)
-            return (model.next(params, z_t, a_t), ret), None
-
-        (z_H, ret), _ = jax.lax.scan(step, (z, jnp.zeros(n)), (actions, gammas))
-        alive = None
-    else:
-
-        def step(carry, xs):
-            z_t, ret, alive = carry  # alive [N]: 1.0 until a termination is predicted
-            a_t, g_t = xs
-            ret = ret + g_t * alive * model.reward(params, z_t, a_t)
-            z_next = model.next(params, z_t, a_t)
+    def step(carry, xs):
+        z_t, ret, alive = carry  # alive [N]: 1.0 until a termination is predicted
+        a_t, g_t = xs
+        ret = ret + g_t * alive * model.reward(params, z_t, a_t)
+        z_next = model.next(params, z_t, a_t)
+        if model.termination is not None:
             ended = jax.nn.sigmoid(model.termination(params, z_next)) > 0.5
-            return (z_next, ret, jnp.where(ended, 0.0, alive)), None
+            alive = jnp.where(ended, 0.0, alive)
+        return (z_next, ret, alive), None
 
-        (z_H, ret, alive), _ = jax.lax.scan(step, (z, jnp.zeros(n), jnp.ones(n)), (actions, gammas))
+    # Without a head alive stays 1.0, and multiplying by 1.0 is exact: the unmasked values.
+    (z_H, ret, alive), _ = jax.lax.scan(step, (z, jnp.zeros(n), jnp.ones(n)), (actions, gammas))
     a_H = model.pi_sample(params, z_H, k_pi)
-    q = model.q_avg(params, z_H, a_H, k_q)
-    if alive is not None:
-        q = alive * q
+    q = alive * model.q_avg(params, z_H, a_H, k_q)
     return ret + discount**H * q
 
 
