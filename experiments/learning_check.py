@@ -21,9 +21,10 @@ import jax
 import numpy as np
 import tyro
 
-from sirl_jax.compile_cache import enable_compilation_cache
-from sirl_jax.config import get_preset
-from sirl_jax.train import make_env, make_train
+from sirl_jax.envs import load
+from sirl_jax.presets import get_preset
+from sirl_jax.run.compile_cache import enable_compilation_cache
+from sirl_jax.train import make_train
 
 OUT = Path(__file__).parent / "out"
 
@@ -92,7 +93,7 @@ def main(args: Args) -> None:
         sirl = dataclasses.replace(cfg.agent.sirl, beta=args.beta)
         cfg = dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, sirl=sirl))
     tc = cfg.train
-    env = make_env(tc.task)
+    env = load(tc.task)[1]
     train = make_train(cfg, env)
     print(train.buffer.describe())
     print(f"seed_steps={train.seed_steps} pretrain_updates={train.pretrain_updates}")
@@ -105,7 +106,7 @@ def main(args: Args) -> None:
     rows = [_row(0, 0.0, math.nan, jax.device_get(evaluate(state, key_eval)))]
     print(rows[-1])
     returns, next_eval = [], tc.eval_every
-    num_calls = -(-tc.steps // train.steps_per_call)
+    num_calls = -(-tc.steps // tc.steps_per_call)
     for i in range(num_calls):
         state, metrics = step(state)
         metrics = jax.device_get(metrics)

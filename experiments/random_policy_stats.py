@@ -22,9 +22,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import sirl_jax.envs.tasks as tasks
-from sirl_jax.compile_cache import enable_compilation_cache
 from sirl_jax.envs.base import VecEnv
 from sirl_jax.envs.humanoid import HumanoidEnv
+from sirl_jax.run.compile_cache import enable_compilation_cache
 
 # HumanoidBench reference: mean episode length, mean random reward, reward at a = 0.
 REFERENCE = {

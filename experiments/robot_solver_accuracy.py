@@ -23,8 +23,8 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from sirl_jax.compile_cache import enable_compilation_cache
 from sirl_jax.envs import h1
+from sirl_jax.run.compile_cache import enable_compilation_cache
 
 N_STEPS = 50
 STAND_SECONDS = 3.0

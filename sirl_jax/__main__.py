@@ -1,5 +1,5 @@
-"""`python -m sirl_jax ...`: see `sirl_jax.cli` and docs/cli.md."""
+"""`python -m sirl_jax ...`: see `sirl_jax.run.cli` and docs/cli.md."""
 
-from sirl_jax.cli import run
+from sirl_jax.run.cli import run
 
 run()

@@ -39,15 +39,10 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from sirl_jax.buffer_memory import BufferTooLargeError, check_buffer_fits
+from sirl_jax.agent.config import RMAX_MODES
 from sirl_jax.types import Batch
 
-__all__ = [
-    "Buffer", "BufferState", "BufferTooLargeError", "RMAX_MODES",
-    "buffer_nbytes", "check_buffer_fits", "make_buffer",
-]
-
-RMAX_MODES = ("in_buffer", "all_time")
+__all__ = ["RMAX_MODES", "Buffer", "BufferState", "make_buffer"]
 
 
 @struct.dataclass
@@ -75,7 +70,6 @@ class BufferState:
       cur_fresh: [E] bool the next `add` starts a new episode.
       r_max: [] float32 reference return for the configured `rmax_mode` (-inf before any).
       r_max_all_time: [] float32 max R over every recorded episode (-inf before any).
-      transitions_added: [] int32 transitions passed to `add` so far (all envs).
       episodes_recorded: [] int32 episodes recorded so far (all envs, evicted ones included).
     """
 
@@ -96,7 +90,6 @@ class BufferState:
     cur_fresh: jax.Array
     r_max: jax.Array
     r_max_all_time: jax.Array
-    transitions_added: jax.Array
     episodes_recorded: jax.Array
 
 
@@ -161,20 +154,13 @@ class Buffer:
             cur_fresh=jnp.ones((e,), bool),
             r_max=jnp.full((), -jnp.inf, f32),
             r_max_all_time=jnp.full((), -jnp.inf, f32),
-            transitions_added=jnp.zeros((), i32),
             episodes_recorded=jnp.zeros((), i32),
         )
 
     def add(
-        self,
-        state: BufferState,
-        obs: jax.Array,
-        action: jax.Array,
-        reward: jax.Array,
-        next_obs: jax.Array,
-        terminated: jax.Array,
-        truncated: jax.Array,
-    ) -> BufferState:
+        self, state: BufferState, obs: jax.Array, action: jax.Array, reward: jax.Array,
+        next_obs: jax.Array, terminated: jax.Array, truncated: jax.Array,
+    ) -> BufferState:  # fmt: skip
         """Adds one transition per env.
 
         Args:
@@ -257,7 +243,6 @@ class Buffer:
             cur_fresh=done,
             r_max=r_max,
             r_max_all_time=r_max_all_time,
-            transitions_added=state.transitions_added + e,
             episodes_recorded=state.episodes_recorded + jnp.sum(keep, dtype=jnp.int32),
         )
 
@@ -266,12 +251,11 @@ class Buffer:
 
         The episode is drawn uniformly among live recorded episodes, then the window start
         uniformly within it. Only meaningful when `can_sample(state)`; before that the batch
-        holds zeros and arbitrary entries and `return_ref` is -inf.
+        holds zeros and arbitrary entries.
 
         Returns:
           `Batch` (time-major): obs [H+1, B, O]; action [H, B, A], reward [H, B] and
-          terminated [H, B] (float 0/1) from entries 1..H of the windows; episode_return [B];
-          return_ref [] = `r_max(state)`.
+          terminated [H, B] (float 0/1) from entries 1..H of the windows; episode_return [B].
         """
         e, l, m, h = self.num_envs, self.ring_size, self.table_size, self.horizon
         b = self.batch_size
@@ -292,7 +276,6 @@ class Buffer:
             reward=state.reward[envs[1:], rows[1:]],
             terminated=state.terminated[envs[1:], rows[1:]].astype(jnp.float32),
             episode_return=state.ep_return[env, slot],
-            return_ref=state.r_max,
         )
 
     def can_sample(self, state: BufferState) -> jax.Array:
@@ -303,24 +286,15 @@ class Buffer:
         """[] float32 R_max for `rmax_mode`; -inf before the first recorded episode."""
         return state.r_max
 
-    def num_transitions(self, state: BufferState) -> jax.Array:
-        """[] int32 transitions added so far (all envs; evicted and running ones included)."""
-        return state.transitions_added
-
     def num_episodes(self, state: BufferState) -> jax.Array:
         """[] int32 live recorded episodes (the ones `sample` draws from)."""
         return jnp.sum(state.ep_tail - state.ep_head)
 
     def _check_add_shapes(self, obs, action, reward, next_obs, terminated, truncated) -> None:
         e, o, a = self.num_envs, self.obs_size, self.action_size
-        expected = {
-            "obs": (obs, (e, o)),
-            "action": (action, (e, a)),
-            "reward": (reward, (e,)),
-            "next_obs": (next_obs, (e, o)),
-            "terminated": (terminated, (e,)),
-            "truncated": (truncated, (e,)),
-        }
+        expected = {"obs": (obs, (e, o)), "action": (action, (e, a)), "reward": (reward, (e,)),
+                    "next_obs": (next_obs, (e, o)), "terminated": (terminated, (e,)),
+                    "truncated": (truncated, (e,))}  # fmt: skip
         for name, (x, shape) in expected.items():
             if jnp.shape(x) != shape:
                 raise ValueError(f"Buffer.add: {name} has shape {jnp.shape(x)}, expected {shape}")
@@ -335,16 +309,9 @@ def _live_max(ep_return: jax.Array, ep_head: jax.Array, ep_tail: jax.Array) -> j
 
 
 def make_buffer(
-    capacity: int,
-    num_envs: int,
-    obs_size: int,
-    action_size: int,
-    horizon: int,
-    batch_size: int,
-    *,
-    discount: float = 1.0,
-    rmax_mode: str = "in_buffer",
-) -> Buffer:
+    capacity: int, num_envs: int, obs_size: int, action_size: int, horizon: int,
+    batch_size: int, *, discount: float = 1.0, rmax_mode: str = "in_buffer",
+) -> Buffer:  # fmt: skip
     """Builds a `Buffer`; validates the static configuration.
 
     Args:
@@ -357,15 +324,11 @@ def make_buffer(
       discount: 1.0 records the undiscounted return; in (0, 1) the discounted one.
       rmax_mode: "in_buffer" (max R over live episodes) or "all_time" (max over all recorded).
     """
-    for name, value, low in (
-        ("num_envs", num_envs, 1),
-        ("obs_size", obs_size, 1),
-        ("action_size", action_size, 1),
-        ("horizon", horizon, 1),
-        ("batch_size", batch_size, 1),
-    ):
-        if not isinstance(value, numbers.Integral) or value < low:
-            raise ValueError(f"make_buffer: {name} must be an int >= {low}, got {value!r}")
+    sizes = {"num_envs": num_envs, "obs_size": obs_size, "action_size": action_size,
+             "horizon": horizon, "batch_size": batch_size}  # fmt: skip
+    for name, value in sizes.items():
+        if not isinstance(value, numbers.Integral) or value < 1:
+            raise ValueError(f"make_buffer: {name} must be an int >= 1, got {value!r}")
     min_capacity = num_envs * (horizon + 2)
     if not isinstance(capacity, numbers.Integral) or capacity < min_capacity:
         raise ValueError(
@@ -382,9 +345,3 @@ def make_buffer(
         capacity, num_envs, obs_size, action_size, horizon, batch_size, float(discount), rmax_mode
     )
 
-
-def buffer_nbytes(
-    capacity: int, num_envs: int, obs_size: int, action_size: int, horizon: int
-) -> int:
-    """Bytes a buffer of this size allocates (storage, episode table and counters)."""
-    return make_buffer(capacity, num_envs, obs_size, action_size, horizon, 1).nbytes

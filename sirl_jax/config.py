@@ -1,27 +1,25 @@
-"""The top-level run configuration: `Config(agent, train)` and named presets.
+"""The top-level run configuration: `Config(agent, train)`, presets, and config round-trips.
 
 Frozen dataclasses; tyro turns them into the CLI and each field docstring becomes its `--help`.
 Derived values (seed steps, buffer capacity, updates per env step) are functions of the config
 and the task, computed where used; nothing is written back.
 
-Presets live in `PRESETS`, which refuses a duplicate name:
-  default  the reference: TD-MPC2 5M + TDMPBC (beta 1, G = R_max), HumanoidBench's settings.
-  smoke    a CPU-sized run on the pendulum swing-up: tiny model, 4 envs, a few thousand steps.
-  cpu      a CPU-sized learning run on the pendulum swing-up (experiments/learning_check.py).
+Named presets are in `sirl_jax/presets.py`; `fit_to_task` here sizes the CPU ones for a task.
+
+This module also owns the run directory's config contract: `config_to_dict` /
+`config_from_dict` (config.json), `flatten_config`, and `check_resume`, the rule of what a
+resumed run may change (`RESUME_MUTABLE`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Iterator, Mapping
+import typing
+from typing import Any
 
 from sirl_jax.agent.config import AgentConfig, SirlConfig
-
-
-def _check(ok: bool, name: str, value: object, allowed: str) -> None:
-    if not ok:
-        raise ValueError(f"{name}={value!r} is invalid; allowed: {allowed}")
+from sirl_jax.agent.config import check as _check
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,9 +56,10 @@ class TrainConfig:
     """Env steps between evaluations (0 = never); evaluated at the first chunk boundary past it."""
     eval_episodes: int = 1
     """Episodes per evaluation, run in parallel (HumanoidBench: 1; the official code: 10)."""
-    checkpoint_every: int = 100_000
-    """Env steps between checkpoints (0 = only at the end, on Ctrl-C/SIGTERM and on a
-    non-finite chunk). 100k: a 2M-step run loses at most 5% of its work to a crash."""
+    checkpoint_every: int | None = None
+    """Env steps between checkpoints; None: steps // 10 (about 10 per run, so `eval` over
+    checkpoints can locate a collapse); 0: only at the end, on Ctrl-C/SIGTERM and on a
+    non-finite chunk."""
     save_buffer: bool = True
     """Save the replay buffer with checkpoints (resuming without it destabilises, tdmpc2#28)."""
     log_every: int = 10_000
@@ -88,10 +87,10 @@ class TrainConfig:
         _check(self.eval_every >= 0, "train.eval_every", self.eval_every, "an int >= 0")
         _check(self.eval_episodes >= 1, "train.eval_episodes", self.eval_episodes, "an int >= 1")
         _check(
-            self.checkpoint_every >= 0,
+            self.checkpoint_every is None or self.checkpoint_every >= 0,
             "train.checkpoint_every",
             self.checkpoint_every,
-            "an int >= 0",
+            "None (= steps // 10) or an int >= 0",
         )
         _check(self.log_every >= 1, "train.log_every", self.log_every, "an int >= 1")
 
@@ -99,6 +98,13 @@ class TrainConfig:
     def steps_per_call(self) -> int:
         """Transitions made by one jitted train step: K * E."""
         return self.chunk_steps * self.num_envs
+
+    @property
+    def checkpoint_interval(self) -> int:
+        """Env steps between checkpoints (0 = none but the final one): steps // 10 if unset."""
+        if self.checkpoint_every is None:
+            return max(self.steps // 10, 1)
+        return self.checkpoint_every
 
     @property
     def capacity(self) -> int:
@@ -139,8 +145,11 @@ class Config:
             f">= horizon + 1 ({self.agent.horizon + 1}) transitions",
         )
 
-    def validate_for_task(self, episode_length: int, success_bar: float | None) -> None:
-        """Checks that need the task: episode length vs horizon, and a success bar for G."""
+    def validate_for_task(self, episode_length: int) -> None:
+        """Checks that need the task: episode length vs horizon and vs the replay capacity.
+
+        (Whether the task has the success bar `g_source="target"` needs is `make_agent`'s.)
+        """
         _check(
             episode_length > self.agent.horizon + 1,
             "episode_length",
@@ -155,110 +164,105 @@ class Config:
             f"a capacity (min(buffer_size, steps)) of at least num_envs * (episode_length + 1)"
             f" = {self.train.num_envs * (episode_length + 1)} so a whole episode fits per env",
         )
-        if self.agent.sirl.enabled and self.agent.sirl.g_source == "target":
-            _check(
-                success_bar is not None,
-                "agent.sirl.g_source",
-                "target",
-                f"'rmax', since task {self.train.task!r} has no success bar",
-            )
 
 
-class _Presets(Mapping[str, Callable[[], Config]]):
-    def __init__(self) -> None:
-        self._factories: dict[str, Callable[[], Config]] = {}
-        self._docs: dict[str, str] = {}
-
-    def register(self, name: str, factory: Callable[[], Config], doc: str = "") -> None:
-        if name in self._factories:
-            raise ValueError(f"preset {name!r} is already registered")
-        self._factories[name] = factory
-        self._docs[name] = doc
-
-    def __getitem__(self, name: str) -> Callable[[], Config]:
-        if name not in self._factories:
-            raise KeyError(f"unknown preset {name!r}; valid presets: {', '.join(sorted(self))}")
-        return self._factories[name]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._factories)
-
-    def __len__(self) -> int:
-        return len(self._factories)
-
-    def doc(self, name: str) -> str:
-        self[name]
-        return self._docs[name]
+RESUME_MUTABLE = frozenset(
+    {"train.steps", "train.eval_every", "train.eval_episodes", "train.checkpoint_every",
+     "train.log_every", "train.save_buffer"}
+)  # fmt: skip
+"""Config fields a resumed run may change; every other field must match the saved config."""
 
 
-PRESETS = _Presets()
-"""Named configs; `get_preset(name)` builds one. Registering a taken name raises ValueError."""
+def config_to_dict(config: Any) -> dict:
+    """A nested config dataclass as plain JSON-able dicts (what config.json holds)."""
+    return dataclasses.asdict(config)
 
 
-def register_preset(name: str, factory: Callable[[], Config], doc: str = "") -> None:
-    """Adds a named preset (a zero-argument factory returning a `Config`)."""
-    PRESETS.register(name, factory, doc)
+def config_from_dict(cls: type, data: dict, where: str = "config") -> Any:
+    """Rebuilds a (nested, frozen) config dataclass from `config_to_dict` output.
+
+    Raises ValueError naming the fields this version does not know (a run written by other
+    code); fields missing from `data` take their defaults.
+    """
+    hints = typing.get_type_hints(cls)
+    unknown = sorted(set(data) - {f.name for f in dataclasses.fields(cls)})
+    if unknown:
+        raise ValueError(f"{where}: unknown fields {unknown} (written by another version?)")
+    kwargs = {}
+    for name, value in data.items():
+        hint = hints[name]
+        if dataclasses.is_dataclass(hint) and isinstance(value, dict):
+            value = config_from_dict(hint, value, f"{where}.{name}")
+        elif isinstance(value, list):
+            value = tuple(value)
+        kwargs[name] = value
+    return cls(**kwargs)
 
 
-def get_preset(name: str) -> Config:
-    """The `Config` of a named preset; a clear error lists the valid names."""
-    return PRESETS[name]()
+def flatten_config(config: Any) -> dict[str, Any]:
+    """{'train.steps': 1000, 'agent.sirl.beta': 1.0, ...} of a nested config dataclass."""
+    out = {}
+
+    def walk(prefix: str, obj: Any) -> None:
+        for f in dataclasses.fields(obj):
+            value = getattr(obj, f.name)
+            if dataclasses.is_dataclass(value):
+                walk(f"{prefix}{f.name}.", value)
+            else:
+                out[prefix + f.name] = value
+
+    walk("", config)
+    return out
 
 
-def _smoke() -> Config:
-    return Config(
-        agent=AgentConfig.tiny(batch_size=32),
-        train=TrainConfig(
-            task="pendulum",
-            steps=4_000,
-            num_envs=4,
-            chunk_steps=50,
-            seed_steps=1_000,
-            buffer_size=4_000,
-            eval_every=2_000,
-            log_every=1_000,
-        ),
-    )
+def check_resume(saved: Config, given: Config) -> None:
+    """Raises ValueError unless `given` differs from `saved` only in `RESUME_MUTABLE` fields
+    and keeps the replay capacity (the buffer's shape)."""
+    old, new = flatten_config(saved), flatten_config(given)
+    refused = [k for k in old if old[k] != new[k] and k not in RESUME_MUTABLE]
+    if refused:
+        detail = ", ".join(f"{k} (saved {old[k]!r}, given {new[k]!r})" for k in refused)
+        allowed = ", ".join(sorted(RESUME_MUTABLE))
+        raise ValueError(f"--resume cannot change {detail}; a resumed run may change {allowed}")
+    if saved.train.capacity != given.train.capacity:
+        raise ValueError(
+            f"--resume: --steps {given.train.steps:,} would change the replay capacity "
+            f"min(buffer_size, steps) from {saved.train.capacity:,} to "
+            f"{given.train.capacity:,}; start a new run, or set a buffer_size <= steps "
+            "when starting one you may extend"
+        )
 
 
-def _cpu() -> Config:
-    return Config(
-        agent=AgentConfig(
-            model_size="tiny",
-            latent_dim=64,
-            mlp_dim=128,
-            enc_dim=64,
-            num_q=2,
-            num_samples=64,
-            num_elites=8,
-            num_pi_trajs=8,
-            iterations=2,
-            batch_size=64,
-        ),
-        train=TrainConfig(
-            task="pendulum",
-            steps=30_000,
-            num_envs=8,
-            chunk_steps=50,
-            utd=0.25,
-            buffer_size=30_000,
-            eval_every=2_000,
-            eval_episodes=8,
-            log_every=2_000,
-        ),
-    )
+def fit_to_task(config: Config, episode_length: int) -> tuple[Config, dict[str, tuple]]:
+    """A CPU preset sized for a task with episodes of `episode_length` (T) steps.
 
+    Raises what depends on T, never lowers it: replay capacity (buffer_size and steps) to two
+    episodes per env, 2 E (T + 1); explicit seed_steps to one episode per env, E T; eval_every
+    to E T (an evaluation costs T steps). Returns the config and {field: (preset, derived)}
+    for each value changed.
+    """
+    t, e = config.train, config.train.num_envs
+    need = 2 * e * (episode_length + 1)
+    derived = {
+        "buffer_size": max(t.buffer_size, need),
+        "steps": max(t.steps, need),
+        "seed_steps": None if t.seed_steps is None else max(t.seed_steps, e * episode_length),
+        "eval_every": max(t.eval_every, e * episode_length) if t.eval_every else 0,
+    }
+    changed = {k: (getattr(t, k), v) for k, v in derived.items() if getattr(t, k) != v}
+    train = dataclasses.replace(t, **{k: v for k, (_, v) in changed.items()})
+    return dataclasses.replace(config, train=train), {f"train.{k}": v for k, v in changed.items()}
 
-register_preset("default", Config, "the reference: TD-MPC2 5M + TDMPBC, HumanoidBench settings")
-register_preset("smoke", _smoke, "CPU smoke run: tiny model, pendulum, 4 envs, 4k steps")
-register_preset("cpu", _cpu, "CPU learning run: small model, pendulum, 8 envs, UTD 0.25")
 
 __all__ = [
-    "PRESETS",
+    "RESUME_MUTABLE",
     "AgentConfig",
     "Config",
     "SirlConfig",
     "TrainConfig",
-    "get_preset",
-    "register_preset",
+    "check_resume",
+    "config_from_dict",
+    "config_to_dict",
+    "fit_to_task",
+    "flatten_config",
 ]

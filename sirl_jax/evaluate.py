@@ -18,48 +18,78 @@ import jax.numpy as jnp
 from sirl_jax.envs.base import Env, VecEnv
 
 
+def _rollout(env: Env, num_episodes: int, act: Callable, aux0, key: jax.Array):
+    """The first episode of each of N fresh envs under `act(env_state, aux, key)`.
+
+    Returns [N] returns, [N] lengths and {term: [N] mean of the reward term over the episode}.
+    """
+    vec = VecEnv(env, num_episodes)
+    key_reset, key_run = jax.random.split(key)
+    zeros = jnp.zeros((num_episodes,), jnp.float32)
+    names = tuple(env.metric_names())
+
+    def body(carry, key_t):
+        env_state, aux, ended, ret, length, terms = carry
+        action, aux = act(env_state, aux, key_t)
+        nxt = vec.step(env_state, action)
+        done = nxt.terminated | nxt.truncated
+        new = done & ~ended
+        ret = jnp.where(new, nxt.last_return, ret)
+        length = jnp.where(new, nxt.last_length.astype(jnp.float32), length)
+        terms = {n: terms[n] + jnp.where(ended, 0.0, nxt.metrics[n]) for n in names}
+        return (nxt, aux, ended | done, ret, length, terms), None
+
+    init = (vec.reset(key_reset), aux0, jnp.zeros_like(zeros, bool), zeros, zeros,
+            {n: zeros for n in names})  # fmt: skip
+    carry, _ = jax.lax.scan(body, init, jax.random.split(key_run, env.episode_length))
+    _, _, _, returns, lengths, terms = carry
+    return returns, lengths, {n: v / jnp.maximum(lengths, 1.0) for n, v in terms.items()}
+
+
+def _summary(prefix: str, bar: float | None, returns, lengths, terms) -> dict[str, jax.Array]:
+    success = jnp.mean(returns >= bar) if bar is not None else jnp.float32(jnp.nan)
+    return {
+        f"eval/{prefix}_return": jnp.mean(returns),
+        f"eval/{prefix}_return_std": jnp.std(returns),
+        f"eval/{prefix}_length": jnp.mean(lengths),
+        f"eval/{prefix}_success": jnp.asarray(success, jnp.float32),
+        **{f"eval/{prefix}_term/{n}": jnp.mean(v) for n, v in terms.items()},
+    }
+
+
+def _check_episodes(num_episodes: int) -> None:
+    if num_episodes < 1:
+        raise ValueError(f"num_episodes={num_episodes!r} is invalid; allowed: an int >= 1")
+
+
+def make_random_evaluate(env: Env, num_episodes: int) -> Callable:
+    """Builds `evaluate(key) -> metrics` of the uniform random policy (the baseline curve).
+
+    Metrics as `make_evaluate`'s, prefix `random`: eval/random_{return,...}.
+    """
+    _check_episodes(num_episodes)
+
+    def act(env_state, aux, k):
+        shape = (num_episodes, env.action_size)
+        return jax.random.uniform(k, shape, minval=-1.0, maxval=1.0), aux
+
+    def evaluate(key: jax.Array) -> dict[str, jax.Array]:
+        return _summary("random", env.success_bar, *_rollout(env, num_episodes, act, None, key))
+
+    return evaluate
+
+
 def make_evaluate(env: Env, agent, num_episodes: int, buffer) -> Callable:
     """Builds `evaluate(state, key) -> metrics` for a `TrainState`.
 
     Metrics ([] arrays): eval/{planner,policy}_{return,return_std,length,success}, with success
-    the fraction of episodes whose return reaches the task's success bar (NaN without one),
-    and eval/r_max (the buffer's R_max). The planner entries are absent when `agent.cfg.mpc`
-    is False (the agent never plans then).
+    the fraction of episodes whose return reaches the task's success bar (NaN without one);
+    eval/{planner,policy}_term/<name>, each reward term's mean over the episodes' steps; and
+    eval/r_max (the buffer's R_max). The planner entries are absent when `agent.cfg.mpc` is
+    False (the agent never plans then).
     """
-    if num_episodes < 1:
-        raise ValueError(f"num_episodes={num_episodes!r} is invalid; allowed: an int >= 1")
-    vec = VecEnv(env, num_episodes)
-    horizon = env.episode_length
+    _check_episodes(num_episodes)
     bar = env.success_bar
-
-    def rollout(act, key):
-        """Returns [N] returns and lengths of the first episode of each eval env."""
-        key_reset, key_run = jax.random.split(key)
-        env_state = vec.reset(key_reset)
-        zeros = jnp.zeros((num_episodes,), jnp.float32)
-
-        def body(carry, key_t):
-            env_state, aux, ended, ret, length = carry
-            action, aux = act(env_state, aux, key_t)
-            nxt = vec.step(env_state, action)
-            done = nxt.terminated | nxt.truncated
-            new = done & ~ended
-            ret = jnp.where(new, nxt.last_return, ret)
-            length = jnp.where(new, nxt.last_length.astype(jnp.float32), length)
-            return (nxt, aux, ended | done, ret, length), None
-
-        init = (env_state, agent.init_planner(num_episodes), jnp.zeros_like(zeros, bool))
-        carry, _ = jax.lax.scan(body, (*init, zeros, zeros), jax.random.split(key_run, horizon))
-        return carry[3], carry[4]
-
-    def summary(prefix: str, returns: jax.Array, lengths: jax.Array) -> dict[str, jax.Array]:
-        success = jnp.mean(returns >= bar) if bar is not None else jnp.float32(jnp.nan)
-        return {
-            f"eval/{prefix}_return": jnp.mean(returns),
-            f"eval/{prefix}_return_std": jnp.std(returns),
-            f"eval/{prefix}_length": jnp.mean(lengths),
-            f"eval/{prefix}_success": jnp.asarray(success, jnp.float32),
-        }
 
     def evaluate(state, key: jax.Array) -> dict[str, jax.Array]:
         key_plan, key_policy = jax.random.split(key)
@@ -70,10 +100,13 @@ def make_evaluate(env: Env, agent, num_episodes: int, buffer) -> Callable:
         def policy(env_state, planner, k):
             return agent.act_policy(state.agent, env_state.obs, k, True), planner
 
+        planner0 = agent.init_planner(num_episodes)
         metrics = {"eval/r_max": buffer.r_max(state.buffer)}
         if agent.cfg.mpc:
-            metrics.update(summary("planner", *rollout(plan, key_plan)))
-        metrics.update(summary("policy", *rollout(policy, key_policy)))
+            rollout = _rollout(env, num_episodes, plan, planner0, key_plan)
+            metrics.update(_summary("planner", bar, *rollout))
+        rollout = _rollout(env, num_episodes, policy, planner0, key_policy)
+        metrics.update(_summary("policy", bar, *rollout))
         return metrics
 
     return evaluate

@@ -3,12 +3,12 @@
 E vectorised envs, the agent (MPPI planner + learner) and one device-resident replay buffer
 share a `TrainState`. `Train.step` runs K vectorised env steps under one `lax.scan`; each one:
 
-  1. acts: uniform random actions until planning starts, then MPPI (or the policy prior when
-     `agent.mpc` is False), with a per-env warm start reset at each env's first step;
+  1. acts (`Train.act`): uniform random actions until planning starts, then MPPI (or the
+     policy prior when `agent.mpc` is False), with a per-env warm start reset at each env's
+     first step;
   2. steps the E envs (auto-reset, `final_obs` kept) and adds E transitions to the buffer;
-  3. runs the owed gradient updates in one `fori_loop` with a traced trip count: none in the
-     seed phase; `pretrain_updates` at once when the seed phase ends (spec §3.7); afterwards
-     E * utd per step, a fractional remainder carried in `update_debt` (spec §4).
+  3. runs the updates `update_schedule` owes (`Train.update` each) in one `fori_loop` with a
+     traced trip count.
 
 The caller jits `step` with `donate_argnums=0` (the buffer is updated in place) and may
 `jax.vmap` `init`/`step`/`evaluate` over keys to train S seeds in one program. Under `vmap`
@@ -21,8 +21,6 @@ Shape letters: S seeds, E envs, K env steps per chunk, O observation, A action.
 from __future__ import annotations
 
 import dataclasses
-import importlib
-import importlib.util
 from collections.abc import Callable
 
 import jax
@@ -33,7 +31,6 @@ from sirl_jax.agent import Agent, AgentState, PlannerState, make_agent
 from sirl_jax.buffer import Buffer, BufferState, make_buffer
 from sirl_jax.config import Config
 from sirl_jax.envs.base import Env, EnvState, VecEnv
-from sirl_jax.envs.registry import TASKS, TaskSpec
 from sirl_jax.evaluate import make_evaluate
 
 
@@ -51,7 +48,6 @@ class TrainState:
       updates: [] int32 gradient updates so far.
       update_debt: [] float32 fractional updates owed (utd * E not an integer).
       planning: [] bool the seed phase and pretraining are over; the agent acts.
-      episodes: [] int32 episodes finished so far (all envs).
     """
 
     agent: AgentState
@@ -63,7 +59,104 @@ class TrainState:
     updates: jax.Array
     update_debt: jax.Array
     planning: jax.Array
-    episodes: jax.Array
+
+
+def update_schedule(
+    planning: jax.Array,
+    env_steps: jax.Array,
+    debt: jax.Array,
+    can_sample: jax.Array,
+    *,
+    num_envs: int,
+    utd: float,
+    seed_steps: int,
+    pretrain_updates: int,
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """The updates owed after one vectorised env step (spec §3.7, §4).
+
+    Seed phase: none. The step that reaches `seed_steps` transitions with a sampleable buffer
+    starts planning and owes `pretrain_updates` (TD-MPC2's pretraining). Afterwards each step
+    owes `num_envs * utd`, the fractional part carried in `debt`. Nothing is owed while the
+    buffer cannot sample.
+
+    Args:
+      planning: [] bool planning had started before this step.
+      env_steps: [] int transitions after this step (all envs).
+      debt: [] float fractional updates carried from earlier steps.
+      can_sample: [] bool the buffer holds a sampleable episode after this step.
+
+    Returns:
+      (updates to run now [] int32, debt to carry [] float32, planning after this step [] bool).
+    """
+    start_now = ~planning & (env_steps >= seed_steps) & can_sample
+    owed = debt + jnp.where(planning, jnp.float32(num_envs * utd), 0.0)
+    regular = jnp.floor(owed)
+    num = jnp.where(start_now, pretrain_updates, regular.astype(jnp.int32))
+    num = jnp.where(can_sample, num, 0).astype(jnp.int32)
+    new_debt = jnp.where(planning, owed - regular, 0.0).astype(jnp.float32)
+    return num, new_debt, planning | start_now
+
+
+@struct.dataclass
+class ChunkStats:
+    """Sums over one chunk's env steps and updates; `finalize` turns them into metrics."""
+
+    episode_return: jax.Array  # [] summed over finished episodes
+    episode_length: jax.Array
+    episodes: jax.Array  # [] int32 episodes finished
+    terminated: jax.Array  # [] int32 of those, ended by the task's termination
+    reward: jax.Array  # [] summed over env steps
+    terms: dict  # reward term -> [] sum over env steps
+    losses: dict  # update metric -> [] sum over updates
+    num_updates: jax.Array
+    nonfinite_obs: jax.Array  # [] int32 env steps whose s_{t+1} has a NaN/inf
+    nonfinite_loss: jax.Array  # [] int32 updates with a non-finite metric
+
+    @classmethod
+    def zeros(cls, term_names: tuple[str, ...], loss_names: tuple[str, ...]) -> ChunkStats:
+        zf, zi = jnp.zeros((), jnp.float32), jnp.zeros((), jnp.int32)
+        return cls(zf, zi, zi, zi, zf, {n: zf for n in term_names},
+                   {n: zf for n in loss_names}, zi, zi, zi)  # fmt: skip
+
+    def add(self, env: EnvState, loss_sums: dict, num: jax.Array, bad: jax.Array) -> ChunkStats:
+        """Adds one vectorised env step (`env` after it) and the updates run after it."""
+        done = env.terminated | env.truncated
+        i32 = jnp.int32
+        return ChunkStats(
+            episode_return=self.episode_return + jnp.sum(jnp.where(done, env.last_return, 0.0)),
+            episode_length=self.episode_length + jnp.sum(jnp.where(done, env.last_length, 0)),
+            episodes=self.episodes + jnp.sum(done, dtype=i32),
+            terminated=self.terminated + jnp.sum(env.terminated, dtype=i32),
+            reward=self.reward + jnp.sum(env.reward),
+            terms={n: v + jnp.sum(env.metrics[n]) for n, v in self.terms.items()},
+            losses={n: v + loss_sums[n] for n, v in self.losses.items()},
+            num_updates=self.num_updates + num,
+            nonfinite_obs=self.nonfinite_obs
+            + jnp.sum(~jnp.all(jnp.isfinite(env.final_obs), axis=-1), dtype=i32),
+            nonfinite_loss=self.nonfinite_loss + bad,
+        )
+
+    def finalize(self, env_steps_in_chunk: int) -> dict[str, jax.Array]:
+        """Per-episode, per-step and per-update means (NaN where the chunk had none)."""
+        count = self.episodes.astype(jnp.float32)
+        per_episode = jnp.where(count > 0, 1.0 / jnp.maximum(count, 1.0), jnp.nan)
+        nu = self.num_updates.astype(jnp.float32)
+        per_update = jnp.where(nu > 0, 1.0 / jnp.maximum(nu, 1.0), jnp.nan)
+        n_steps = jnp.float32(env_steps_in_chunk)
+        metrics = {
+            "episode/return": self.episode_return * per_episode,
+            "episode/length": self.episode_length.astype(jnp.float32) * per_episode,
+            "episode/count": self.episodes,
+            "episode/terminated": self.terminated,
+            "reward": self.reward / n_steps,
+            "train/num_updates": self.num_updates,
+            "nonfinite_obs": self.nonfinite_obs,
+            "nonfinite_loss": self.nonfinite_loss,
+        }
+        metrics.update({f"env/{n}": v / n_steps for n, v in self.terms.items()})
+        metrics.update({n if "/" in n else f"train/{n}": v * per_update
+                        for n, v in self.losses.items()})  # fmt: skip
+        return metrics
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,9 +167,11 @@ class Train:
       init: (key) -> TrainState.
       step: (TrainState) -> (TrainState, metrics): K env steps and their updates; metrics
         is a flat dict of [] arrays (see `make_train`).
+      act: (TrainState, key) -> (actions [E, A], PlannerState): step 1 of the env step.
+      update: (AgentState, BufferState, key) -> (AgentState, metrics): one gradient update
+        on a fresh batch, with the buffer's R_max passed to the agent.
       evaluate: (TrainState, key) -> metrics of `eval_episodes` fresh episodes, planner and
         policy prior in eval mode.
-      steps_per_call: K * E transitions per `step`.
       seed_steps: transitions of random acting before planning.
       pretrain_updates: updates run at once when the seed phase ends.
     """
@@ -88,81 +183,46 @@ class Train:
     buffer: Buffer
     init: Callable[[jax.Array], TrainState]
     step: Callable[[TrainState], tuple[TrainState, dict[str, jax.Array]]]
+    act: Callable[[TrainState, jax.Array], tuple[jax.Array, PlannerState]]
+    update: Callable[[AgentState, BufferState, jax.Array], tuple[AgentState, dict]]
     evaluate: Callable[[TrainState, jax.Array], dict[str, jax.Array]]
-    steps_per_call: int
     seed_steps: int
     pretrain_updates: int
-    return_ref: str
-
-
-def load_task(name: str) -> TaskSpec:
-    """The registry spec of a task id/alias, registering optional task families on demand."""
-    from sirl_jax.envs import classic  # noqa: F401  (registers `pendulum`)
-    from sirl_jax.envs.playground_adapter import is_playground_task, register_playground_task
-
-    if is_playground_task(name):
-        return register_playground_task(name)
-    if name not in TASKS and importlib.util.find_spec("sirl_jax.envs.tasks") is not None:
-        importlib.import_module("sirl_jax.envs.tasks")
-    return TASKS.resolve(name)
-
-
-def make_env(name: str) -> Env:
-    """Builds the (unbatched) environment of a task."""
-    return load_task(name).factory()
-
-
-def _update_metric_names(agent: Agent, buffer: Buffer) -> tuple[str, ...]:
-    shapes = jax.eval_shape(
-        lambda k: agent.update(agent.init(k), buffer.sample(buffer.init(), k), k)[1],
-        jax.random.PRNGKey(0),
-    )
-    return tuple(sorted(shapes))
 
 
 def make_train(config: Config, env: Env) -> Train:
     """Builds the train functions for `config` on the unbatched `env`.
 
+    Raises ValueError when the config does not fit the task (episode length, replay capacity,
+    a success bar for `g_source="target"`).
+
     Metrics of `step` (all [] arrays, per chunk): env_steps, updates, planning (0/1),
     episode/{return,length,count,terminated} (means over episodes finished in the chunk, NaN
-    if none), reward (mean step reward), env/<term> (mean reward terms), train/<loss> (mean
-    over the chunk's updates, NaN if none), train/num_updates, r_max (-inf before the first
-    recorded episode), return_ref (the G the updates used), buffer/{episodes,transitions},
-    nonfinite_obs (env steps whose s_{t+1} has a NaN/inf), nonfinite_loss (updates with a
-    non-finite metric). A shell should stop when either count is non-zero.
+    if none), reward (mean step reward), env/<term> (mean reward terms), train/<loss> and
+    sirl/clamped_fraction (means over the chunk's updates, NaN if none), train/num_updates,
+    r_max (-inf before the first recorded episode), sirl/reference (the G of the next update),
+    buffer/episodes, nonfinite_obs (env steps whose s_{t+1} has a NaN/inf), nonfinite_loss
+    (updates with a non-finite metric). A shell should stop when either count is non-zero.
     """
     tc, ac = config.train, config.agent
-    config.validate_for_task(env.episode_length, env.success_bar)
-    e, k_steps = tc.num_envs, tc.chunk_steps
+    config.validate_for_task(env.episode_length)
+    e = tc.num_envs
     vec = VecEnv(env, e)
     o, a = env.observation_size, env.action_size
-    agent = make_agent(ac, obs_size=o, action_size=a, episode_length=env.episode_length)
+    agent = make_agent(ac, o, a, env.episode_length, env.success_bar)
     discount = agent.discount if ac.sirl.return_kind == "discounted" else 1.0
-    buffer = make_buffer(
-        tc.capacity, e, o, a, ac.horizon, ac.batch_size, discount=discount, rmax_mode="in_buffer"
-    )
-    seed_steps = tc.resolved_seed_steps(env.episode_length)
-    pretrain_updates = tc.pretrain_updates(env.episode_length)
-    use_target = ac.sirl.g_source == "target"
-    success_bar = jnp.float32(env.success_bar if env.success_bar is not None else jnp.nan)
-    update_names = _update_metric_names(agent, buffer)
-    term_names = tuple(env.metric_names())
+    buffer = make_buffer(tc.capacity, e, o, a, ac.horizon, ac.batch_size, discount=discount,
+                         rmax_mode=ac.sirl.rmax_mode)  # fmt: skip
+    schedule = dict(num_envs=e, utd=tc.utd, seed_steps=tc.resolved_seed_steps(env.episode_length),
+                    pretrain_updates=tc.pretrain_updates(env.episode_length))  # fmt: skip
 
     def init(key: jax.Array) -> TrainState:
         key_agent, key_env, key_run = jax.random.split(key, 3)
         zero = jnp.zeros((), jnp.int32)
-        return TrainState(
-            agent=agent.init(key_agent),
-            planner=agent.init_planner(e),
-            env=vec.reset(key_env),
-            buffer=buffer.init(),
-            key=key_run,
-            env_steps=zero,
-            updates=zero,
-            update_debt=jnp.zeros((), jnp.float32),
-            planning=jnp.zeros((), bool),
-            episodes=zero,
-        )
+        return TrainState(agent=agent.init(key_agent), planner=agent.init_planner(e),
+                          env=vec.reset(key_env), buffer=buffer.init(), key=key_run,
+                          env_steps=zero, updates=zero, update_debt=jnp.zeros((), jnp.float32),
+                          planning=jnp.zeros((), bool))  # fmt: skip
 
     def act(state: TrainState, key: jax.Array) -> tuple[jax.Array, PlannerState]:
         def explore(_):
@@ -175,134 +235,61 @@ def make_train(config: Config, env: Env) -> Train:
 
         return jax.lax.cond(state.planning, exploit, explore, None)
 
+    def update(agent_state: AgentState, buf: BufferState, key: jax.Array):
+        key_sample, key_update = jax.random.split(key)
+        batch = buffer.sample(buf, key_sample)
+        return agent.update(agent_state, batch, buffer.r_max(buf), key_update)
+
+    loss_names = tuple(sorted(jax.eval_shape(
+        lambda k: update(agent.init(k), buffer.init(), k)[1], jax.random.PRNGKey(0))))  # fmt: skip
+
     def run_updates(agent_state, buf, num, key):
-        """`num` (traced) updates on fresh batches; returns summed metrics and a NaN count."""
+        """`num` (traced) updates; returns the agent, summed metrics and a non-finite count."""
 
         def body(i, carry):
             agent_state, sums, bad = carry
-            key_sample, key_update = jax.random.split(jax.random.fold_in(key, i))
-            batch = buffer.sample(buf, key_sample)
-            if use_target:
-                batch = batch.replace(return_ref=success_bar)
-            agent_state, m = agent.update(agent_state, batch, key_update)
-            means = [jnp.mean(m[n]) for n in update_names]
+            agent_state, m = update(agent_state, buf, jax.random.fold_in(key, i))
+            means = [jnp.mean(m[n]) for n in loss_names]
             finite = jnp.isfinite(sum(means))  # a NaN or inf in any metric makes the sum one
-            sums = {n: sums[n] + v for n, v in zip(update_names, means, strict=True)}
+            sums = {n: sums[n] + v for n, v in zip(loss_names, means, strict=True)}
             return agent_state, sums, bad + (~finite).astype(jnp.int32)
 
-        sums0 = {n: jnp.zeros((), jnp.float32) for n in update_names}
+        sums0 = {n: jnp.zeros((), jnp.float32) for n in loss_names}
         return jax.lax.fori_loop(0, num, body, (agent_state, sums0, jnp.zeros((), jnp.int32)))
 
     def env_step(carry, _):
-        state, acc = carry
+        state, stats = carry
         key, key_act, key_update = jax.random.split(state.key, 3)
         action, planner = act(state, key_act)
         env_state = vec.step(state.env, action)
-        buf = buffer.add(
-            state.buffer,
-            state.env.obs,
-            action,
-            env_state.reward,
-            env_state.final_obs,
-            env_state.terminated,
-            env_state.truncated,
-        )
+        buf = buffer.add(state.buffer, state.env.obs, action, env_state.reward, env_state.final_obs,
+                         env_state.terminated, env_state.truncated)  # fmt: skip
         env_steps = state.env_steps + e
-        can_sample = buffer.can_sample(buf)
-        start_now = ~state.planning & (env_steps >= seed_steps) & can_sample
-        owed = state.update_debt + jnp.where(state.planning, jnp.float32(e * tc.utd), 0.0)
-        regular = jnp.floor(owed)
-        num = jnp.where(start_now, pretrain_updates, regular.astype(jnp.int32))
-        num = jnp.where(can_sample, num, 0)
-        agent_state, sums, bad = run_updates(state.agent, buf, num, key_update)
-
-        done = env_state.terminated | env_state.truncated
-        ref = success_bar if use_target else buffer.r_max(buf)
-        acc = {
-            "ret": acc["ret"] + jnp.sum(jnp.where(done, env_state.last_return, 0.0)),
-            "len": acc["len"] + jnp.sum(jnp.where(done, env_state.last_length, 0)),
-            "count": acc["count"] + jnp.sum(done, dtype=jnp.int32),
-            "term": acc["term"] + jnp.sum(env_state.terminated, dtype=jnp.int32),
-            "reward": acc["reward"] + jnp.sum(env_state.reward),
-            "terms": {n: acc["terms"][n] + jnp.sum(env_state.metrics[n]) for n in term_names},
-            "upd": {n: acc["upd"][n] + sums[n] for n in update_names},
-            "num_updates": acc["num_updates"] + num,
-            "nonfinite_obs": acc["nonfinite_obs"]
-            + jnp.sum(~jnp.all(jnp.isfinite(env_state.final_obs), axis=-1), dtype=jnp.int32),
-            "nonfinite_loss": acc["nonfinite_loss"] + bad,
-            "return_ref": ref,
-        }
-        state = TrainState(
-            agent=agent_state,
-            planner=planner,
-            env=env_state,
-            buffer=buf,
-            key=key,
-            env_steps=env_steps,
-            updates=state.updates + num,
-            update_debt=jnp.where(state.planning, owed - regular, 0.0),
-            planning=state.planning | start_now,
-            episodes=state.episodes + jnp.sum(done, dtype=jnp.int32),
+        num, debt, planning = update_schedule(
+            state.planning, env_steps, state.update_debt, buffer.can_sample(buf), **schedule
         )
-        return (state, acc), None
+        agent_state, sums, bad = run_updates(state.agent, buf, num, key_update)
+        state = TrainState(agent=agent_state, planner=planner, env=env_state, buffer=buf,
+                           key=key, env_steps=env_steps, updates=state.updates + num,
+                           update_debt=debt, planning=planning)  # fmt: skip
+        return (state, stats.add(env_state, sums, num, bad)), None
 
     def step(state: TrainState) -> tuple[TrainState, dict[str, jax.Array]]:
-        zf, zi = jnp.zeros((), jnp.float32), jnp.zeros((), jnp.int32)
-        acc0 = {
-            "ret": zf,
-            "len": zi,
-            "count": zi,
-            "term": zi,
-            "reward": zf,
-            "terms": {n: zf for n in term_names},
-            "upd": {n: zf for n in update_names},
-            "num_updates": zi,
-            "nonfinite_obs": zi,
-            "nonfinite_loss": zi,
-            "return_ref": zf,
-        }
-        (state, acc), _ = jax.lax.scan(env_step, (state, acc0), None, length=k_steps)
-        return state, _chunk_metrics(state, acc)
-
-    def _chunk_metrics(state: TrainState, acc) -> dict[str, jax.Array]:
-        count = acc["count"].astype(jnp.float32)
-        per_episode = jnp.where(count > 0, 1.0 / jnp.maximum(count, 1.0), jnp.nan)
-        nu = acc["num_updates"].astype(jnp.float32)
-        per_update = jnp.where(nu > 0, 1.0 / jnp.maximum(nu, 1.0), jnp.nan)
-        n_steps = jnp.float32(k_steps * e)
-        metrics = {
+        stats = ChunkStats.zeros(tuple(env.metric_names()), loss_names)
+        (state, stats), _ = jax.lax.scan(env_step, (state, stats), None, length=tc.chunk_steps)
+        r_max = buffer.r_max(state.buffer)
+        return state, {
+            **stats.finalize(tc.steps_per_call),
             "env_steps": state.env_steps,
             "updates": state.updates,
             "planning": state.planning.astype(jnp.float32),
-            "episode/return": acc["ret"] * per_episode,
-            "episode/length": acc["len"].astype(jnp.float32) * per_episode,
-            "episode/count": acc["count"],
-            "episode/terminated": acc["term"],
-            "reward": acc["reward"] / n_steps,
-            "train/num_updates": acc["num_updates"],
-            "r_max": buffer.r_max(state.buffer),
-            "return_ref": acc["return_ref"],
+            "r_max": r_max,
+            "sirl/reference": agent.sirl_reference(r_max),
             "buffer/episodes": buffer.num_episodes(state.buffer),
-            "buffer/transitions": buffer.num_transitions(state.buffer),
-            "nonfinite_obs": acc["nonfinite_obs"],
-            "nonfinite_loss": acc["nonfinite_loss"],
         }
-        metrics.update({f"env/{n}": v / n_steps for n, v in acc["terms"].items()})
-        metrics.update({f"train/{n}": v * per_update for n, v in acc["upd"].items()})
-        return metrics
 
-    evaluate = make_evaluate(env, agent, tc.eval_episodes, buffer)
-    return Train(
-        config=config,
-        env=env,
-        vec_env=vec,
-        agent=agent,
-        buffer=buffer,
-        init=init,
-        step=step,
-        evaluate=evaluate,
-        steps_per_call=k_steps * e,
-        seed_steps=seed_steps,
-        pretrain_updates=pretrain_updates,
-        return_ref="success_bar" if use_target else "r_max",
-    )
+    return Train(config=config, env=env, vec_env=vec, agent=agent, buffer=buffer, init=init,
+                 step=step, act=act, update=update,
+                 evaluate=make_evaluate(env, agent, tc.eval_episodes, buffer),
+                 seed_steps=schedule["seed_steps"],
+                 pretrain_updates=schedule["pretrain_updates"])  # fmt: skip

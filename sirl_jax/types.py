@@ -21,8 +21,6 @@ class Batch:
       reward: [H, B] rewards r_0..r_{H-1}.
       terminated: [H, B] 1.0 where s_{t+1} is terminal (a fall), else 0.0.
       episode_return: [B] return R of the episode each sub-trajectory came from.
-      return_ref: [] the reference return G of the self-imitative weight
-        (R_max of the buffer, or the task's success bar), supplied by the train step.
     """
 
     obs: jax.Array
@@ -30,4 +28,3 @@ class Batch:
     reward: jax.Array
     terminated: jax.Array
     episode_return: jax.Array
-    return_ref: jax.Array

@@ -4,6 +4,6 @@ import os
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
-from sirl_jax.compile_cache import enable_compilation_cache  # noqa: E402
+from sirl_jax.run.compile_cache import enable_compilation_cache  # noqa: E402
 
 enable_compilation_cache()

@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from sirl_jax.buffer import (
-    BufferTooLargeError,
-    buffer_nbytes,
-    check_buffer_fits,
-    make_buffer,
-)
+from sirl_jax.buffer import make_buffer
+from sirl_jax.run.buffer_memory import BufferTooLargeError, check_buffer_fits
+
+
+def buffer_nbytes(capacity, num_envs, obs_size, action_size, horizon) -> int:
+    return make_buffer(capacity, num_envs, obs_size, action_size, horizon, 1).nbytes
 
 E, O, A, H, B = 3, 4, 2, 3, 64
 RING = 30  # entries per env
@@ -187,7 +187,6 @@ def check_batch(batch, ref, episodes, mode):
             last = k0 + t + 1 == info.length
             assert batch.terminated[t, b] == float(last and info.terminated)
         np.testing.assert_allclose(batch.episode_return[b], ref.returns[ep], rtol=1e-6)
-    np.testing.assert_allclose(batch.return_ref, ref.r_max(mode), rtol=1e-6)
 
 
 def run_against_reference(fns, discount, mode, seed):
@@ -199,13 +198,12 @@ def run_against_reference(fns, discount, mode, seed):
     assert not buf.can_sample(state) and buf.r_max(state) == -np.inf
     seen = collections.Counter()
     r_max_history = []
-    for t, chunk in chunks(data, num_steps):
+    for _, chunk in chunks(data, num_steps):
         state = run_chunk(state, chunk)
         for s in range(CHUNK):
             for e in range(E):
                 ep, k = int(chunk["obs"][s, e, 1]), int(chunk["obs"][s, e, 2])
                 ref.add(e, ep, k, chunk["reward"][s, e])
-        assert int(buf.num_transitions(state)) == (t + CHUNK) * E
         assert int(buf.num_episodes(state)) == len(ref.live())
         assert bool(buf.can_sample(state)) == bool(ref.live())
         np.testing.assert_allclose(buf.r_max(state), ref.r_max(mode), rtol=1e-6)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from flax import struct
 
-from sirl_jax.checkpoint import CHECKSUMS, Checkpointer, CheckpointError
+from sirl_jax.run.checkpoint import CHECKSUMS, Checkpointer, CheckpointError
 
 
 @struct.dataclass
@@ -178,6 +178,18 @@ def test_other_structure_is_refused_by_name(tmp_path):
     other = _state(0).replace(params={"w": jnp.zeros((4, 3)), "bias": jnp.zeros(3)})
     with pytest.raises(CheckpointError, match="params_b.*params_bias|does not match"):
         ckpt.restore(_targets(other))
+
+
+@pytest.mark.timeout(60)
+def test_a_field_removed_since_the_save_is_named(tmp_path):
+    """An older run's checkpoint with a field this version dropped (as `TrainState.episodes`
+    was): the error names the field instead of a leaf-by-leaf mismatch."""
+    ckpt = Checkpointer(tmp_path / "ck")
+    old = {"agent": {"w": jnp.zeros(3)}, "episodes": jnp.zeros((), jnp.int32), "x": jnp.ones(2)}
+    ckpt.save(1, {"state": old})
+    new = {"agent": {"w": jnp.zeros(3)}, "x": jnp.ones(2)}
+    with pytest.raises(CheckpointError, match="it has episodes, which this version no longer"):
+        ckpt.restore({"state": jax.eval_shape(lambda: new)})
 
 
 @pytest.mark.timeout(60)

@@ -7,6 +7,7 @@ failure paths (non-finite chunk, out of memory) use a toy `make_train` with a 3-
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 import math
@@ -23,9 +24,10 @@ import numpy as np
 import pytest
 from flax import struct
 
-from sirl_jax import cli, progress, runlog
-from sirl_jax.checkpoint import Checkpointer, restore_state
-from sirl_jax.config import Config
+from sirl_jax.envs import load
+from sirl_jax.run import cli, progress, runlog, runner
+from sirl_jax.run.checkpoint import Checkpointer
+from sirl_jax.run.states import restore_state
 
 STEPS, STOP_AT, PER_CALL = 650, 550, 50
 BASE = [
@@ -51,11 +53,10 @@ def _same(a, b) -> bool:
 
 def _load_final(run_dir: Path):
     """The newest checkpoint's state and buffer leaves, restored against its own layout."""
-    from sirl_jax.cli import load_task
     from sirl_jax.train import make_train
 
-    config = runlog.load_config(run_dir, Config)
-    trainer = make_train(config, load_task(config.train.task)[1])
+    config = runlog.load_config(run_dir)
+    trainer = make_train(config, load(config.train.task)[1])
     ckpt = Checkpointer(run_dir / "checkpoints")
     state, step = restore_state(ckpt, trainer.init, jax.random.PRNGKey(config.train.seed))
     ckpt.close()
@@ -112,7 +113,7 @@ def test_ctrl_c_then_resume_equals_uninterrupted_run(runs):
 @pytest.mark.timeout(120)
 def test_run_dir_layout(runs):
     a = runs["a"]
-    config = runlog.load_config(a, Config)
+    config = runlog.load_config(a)
     assert config.train.steps == STEPS and config.train.task == "pendulum"
     versions = json.loads((a / "versions.json").read_text())
     assert len(versions) == 1 and {"python", "jax", "jaxlib", "mujoco", "orbax-checkpoint",
@@ -127,15 +128,59 @@ def test_run_dir_layout(runs):
     assert Checkpointer(a / "checkpoints").steps() == [STEPS]
 
 
-@pytest.mark.timeout(120)
+@pytest.mark.timeout(300)
 def test_eval_command_reproduces_the_logged_evaluation(runs, capsys):
+    """`eval RUN_DIR --episodes 1` (the run's own eval size) writes the numbers the run logged,
+    and they equal a direct `Train.evaluate` call on the restored state with the same key."""
+    from sirl_jax.train import make_train
+
     capsys.readouterr()
-    assert cli.main(["eval", "--run", str(runs["a"])]) == 0
-    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert cli.main(["eval", str(runs["a"]), "--episodes", "1"]) == 0
+    table = capsys.readouterr().out
+    assert f"{STEPS:,}" in table and "random policy: return" in table
+    with open(runs["a"] / "eval" / "checkpoints.csv", newline="") as f:
+        written = list(csv.DictReader(f))
+    assert [int(r["env_steps"]) for r in written] == [STEPS]
+    out = {k: float(v) for k, v in written[0].items() if k.startswith("eval/")}
     logged = _rows(runs["a"] / "eval.jsonl")[-1]
-    assert out["env_steps"] == STEPS
     for k, v in logged.items():
-        assert _same(out[k], v), k
+        if k != "env_steps":
+            assert _same(out[k], v), k
+    config = runlog.load_config(runs["a"])
+    trainer = make_train(config, load(config.train.task)[1])
+    ckpt = Checkpointer(runs["a"] / "checkpoints")
+    state, step = restore_state(ckpt, trainer.init, jax.random.PRNGKey(config.train.seed))
+    ckpt.close()
+    direct = jax.device_get(trainer.evaluate(state, runner.eval_key(config.train.seed, step)))
+    for k in ("eval/planner_return", "eval/policy_return", "eval/policy_length"):
+        assert out[k] == pytest.approx(float(direct[k]), rel=1e-5), k
+    assert any(k.startswith("eval/policy_term/") for k in out)
+    with open(runs["a"] / "eval" / "random.csv", newline="") as f:
+        assert float(next(csv.DictReader(f))["eval/random_length"]) > 0
+
+
+@pytest.mark.timeout(120)
+def test_eval_bad_input_gives_one_line(runs, tmp_path, capsys):
+    cases = [
+        ([str(tmp_path / "nope")], "does not exist"),
+        ([str(runs["a"]), "--step", "7"], "--step 7: no checkpoint at that env step; available"),
+        ([str(runs["a"]), "--episodes", "0"], "--episodes=0 is invalid"),
+    ]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (empty / "config.json").write_text((runs["a"] / "config.json").read_text())
+    cases.append(([str(empty)], "has no checkpoints/"))
+    other = tmp_path / "other"
+    shutil.copytree(runs["a"], other)
+    cfg = json.loads((other / "config.json").read_text())
+    cfg["agent"]["latent_dim"] = 64  # a config the saved networks do not match
+    (other / "config.json").write_text(json.dumps(cfg))
+    cases.append(([str(other)], "is unreadable by this config: "))
+    for argv, needle in cases:
+        capsys.readouterr()
+        assert cli.main(["eval", *argv]) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("error: ") and needle in err and "\n" not in err, (argv, err)
 
 
 @pytest.mark.timeout(120)
@@ -230,7 +275,7 @@ def test_train_help_lists_nested_and_short_flags(capsys):
 def test_short_flags_expand_to_config_fields():
     argv = ["--seed", "3", "--num-envs=4", "--model-size", "1M", "--beta", "0.5", "--g",
             "target", "--no-save-buffer", "--agent.horizon", "5"]  # fmt: skip
-    args = cli.parse_train_args(argv)
+    args, _ = cli.parse_train_args(argv)
     c = args.config
     assert (c.train.seed, c.train.num_envs, c.agent.model_size) == (3, 4, "1M")
     assert (c.agent.sirl.beta, c.agent.sirl.g_source, c.agent.horizon) == (0.5, "target", 5)
@@ -265,7 +310,7 @@ def test_run_cost_by_hand():
 def test_cpu_run_of_a_gpu_sized_model_states_its_cost_first(tmp_path, capsys, monkeypatch):
     """A non-tiny model on CPU: one plan and one update are timed and the cost is printed
     before the first chunk (the loop itself is stubbed out: only the up-front line matters)."""
-    monkeypatch.setattr(cli, "_loop", lambda run, state: cli.EXIT_OK)
+    monkeypatch.setattr(runner.Run, "loop", lambda self, state: None)
     argv = ["train", "--preset", "smoke", "--model-size", "1M", "--steps", "4000",
             "--num-envs", "2", "--no-progress", "--run-dir", str(tmp_path / "r")]  # fmt: skip
     assert cli.main(argv) == 0
@@ -288,12 +333,28 @@ class _ToyState:
 
 
 @dataclasses.dataclass(frozen=True)
+class _ToyBuffer:
+    nbytes: int = 32
+
+    def describe(self) -> str:
+        return "toy buffer"
+
+
+@dataclasses.dataclass(frozen=True)
+class _ToyAgent:
+    iterations: int = 1
+
+
+@dataclasses.dataclass(frozen=True)
 class _ToyTrain:
-    """10 env steps and one update per call; the chunk reaching `fail_at` reports a NaN loss."""
+    """A `Train` stand-in: 10 env steps and one update per call; the chunk reaching `fail_at`
+    reports a NaN loss."""
 
     fail_at: int
     oom: bool = False
     steps_per_call: int = 10
+    buffer: _ToyBuffer = _ToyBuffer()
+    agent: _ToyAgent = _ToyAgent()
 
     def init(self, key):
         zero = jnp.zeros((), jnp.int32)
@@ -304,7 +365,8 @@ class _ToyTrain:
             raise jax.errors.JaxRuntimeError("RESOURCE_EXHAUSTED: Out of memory allocating 8 GB")
         env_steps = state.env_steps + self.steps_per_call
         bad = env_steps >= self.fail_at
-        metrics = {"train/loss": jnp.where(bad, jnp.nan, 1.0), "nonfinite_loss": bad.astype(int)}
+        metrics = {"train/loss": jnp.where(bad, jnp.nan, 1.0), "nonfinite_loss": bad.astype(int),
+                   "env_steps": env_steps, "updates": state.updates + 1}  # fmt: skip
         new = state.replace(
             params=state.params + jnp.where(bad, jnp.nan, 1.0),
             buffer={"obs": state.buffer["obs"] + 1.0},
@@ -319,9 +381,7 @@ class _ToyTrain:
 
 
 def _toy_run(monkeypatch, tmp_path, toy: _ToyTrain, *flags: str) -> int:
-    import sirl_jax.train
-
-    monkeypatch.setattr(sirl_jax.train, "make_train", lambda config, env: toy)
+    monkeypatch.setattr(runner, "make_train", lambda config, env: toy)
     argv = ["train", "--preset", "smoke", "--steps", "2000", "--checkpoint-every", "20",
             "--eval-every", "0", "--log-every", "10", "--no-progress", "--no-tensorboard",
             "--run-dir", str(tmp_path / "run"), *flags]  # fmt: skip
@@ -373,3 +433,19 @@ def test_runlog_csv_grows_columns_and_drops_rows_past_a_step(tmp_path):
     assert [r["env_steps"] for r in runlog.read_jsonl(tmp_path / "metrics.jsonl")] == [10, 20]
     assert len((tmp_path / "metrics.csv").read_text().splitlines()) == 3
     log.close()
+
+
+@pytest.mark.timeout(300)
+def test_smoke_preset_is_sized_for_a_playground_task(capsys):
+    """`--task dmc:CartpoleSwingup --preset smoke` (T = 1000) was refused: the smoke buffer of
+    4,000 entries cannot hold an episode per env. The preset is now sized for the task, and a
+    flag given by hand still wins over a derived value."""
+    pytest.importorskip("mujoco_playground")
+    args, derived = cli.parse_train_args(["--task", "dmc:CartpoleSwingup", "--preset", "smoke"])
+    need = 2 * 4 * 1001
+    assert derived["train.buffer_size"] == (4_000, need) and derived["train.steps"] == (4_000, need)
+    args.config.validate_for_task(1000)
+    args, derived = cli.parse_train_args(
+        ["--task", "dmc:CartpoleSwingup", "--preset", "smoke", "--steps", "20000"]
+    )
+    assert args.config.train.steps == 20_000 and "train.steps" not in derived

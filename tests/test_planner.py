@@ -49,6 +49,13 @@ def test_mppi_weights_by_hand():
     # NaN -> 0 makes sample 4 (value 0) an elite ahead of sample 3 (value -4)
     _, _, el, _ = mppi_update(cfg, jnp.array([-1.0, -2.0, -3.0, -4.0, jnp.nan]), actions)
     np.testing.assert_allclose(el[0, :, 0], [4.0, 0.0])
+    # +-inf -> the largest finite float of that sign (the reference's nan_to_num): +inf wins,
+    # -inf loses to every finite value, and the scores stay finite.
+    mean, std, el, sc = mppi_update(cfg, jnp.array([jnp.inf, 5.0, -jnp.inf, 1.0, 2.0]), actions)
+    np.testing.assert_allclose(el[0, :, 0], [0.0, 1.0])
+    assert np.all(np.isfinite(sc)) and np.isfinite(float(mean[0, 0]))
+    _, _, el, _ = mppi_update(cfg, jnp.array([-jnp.inf, -5.0, -jnp.inf, -9.0, -7.0]), actions)
+    np.testing.assert_allclose(el[0, :, 0], [1.0, 4.0])
 
 
 @pytest.mark.timeout(60)

@@ -20,6 +20,7 @@ from sirl_jax.agent.planner import PlannerModel, estimate_value, make_planner
 from sirl_jax.agent.world_model import make_world_model
 from sirl_jax.types import Batch
 
+R_MAX = jnp.array(100.0)  # the buffer R_max the updates receive (G = R_max)
 O, A, T, H, B = 10, 4, 100, 3, 8
 EPI = AgentConfig.tiny(episodic=True)
 
@@ -156,7 +157,6 @@ def _batch(key):
         reward=jax.random.uniform(k3, (H, B), minval=-1.0, maxval=3.0),
         terminated=(jax.random.uniform(k4, (H, B)) < 0.3).astype(jnp.float32),
         episode_return=jnp.linspace(-50.0, 150.0, B),
-        return_ref=jnp.array(100.0),
     )
 
 
@@ -171,7 +171,7 @@ def episodic_update():
 def test_episodic_update_trains_the_head(episodic_update):
     agent, state, update, batch = episodic_update
     assert "termination" in state.params
-    new, m = update(state, batch, jax.random.PRNGKey(2))
+    new, m = update(state, batch, R_MAX, jax.random.PRNGKey(2))
     assert all(v.shape == () and bool(jnp.isfinite(v)) for v in m.values())
     # wm_loss = 20 L_c + 0.1 L_r + 0.1 L_q + 1 * L_d.
     rest = 20 * m["consistency_loss"] + 0.1 * m["reward_loss"] + 0.1 * m["value_loss"]
@@ -187,7 +187,7 @@ def test_episodic_update_trains_the_head(episodic_update):
     assert all(v > 1e-5 for v in jax.tree.leaves(moved)), moved
     s = new
     for i in range(30):
-        s, m2 = update(s, batch, jax.random.PRNGKey(10 + i))
+        s, m2 = update(s, batch, R_MAX, jax.random.PRNGKey(10 + i))
     assert float(m2["termination_loss"]) < float(m["termination_loss"]) - 0.05
 
 

@@ -11,13 +11,15 @@ and carry 0.5.
 import dataclasses
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sirl_jax.agent import AgentConfig, SirlConfig
-from sirl_jax.config import PRESETS, Config, TrainConfig, get_preset, register_preset
+from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
+from sirl_jax.config import Config, TrainConfig, fit_to_task
 from sirl_jax.envs.classic import PendulumSwingup
-from sirl_jax.train import make_train
+from sirl_jax.presets import PRESETS, get_preset, register_preset
+from sirl_jax.train import make_train, update_schedule
 
 E, K, T, SEED_STEPS, UTD = 2, 25, 50, 100, 0.75
 
@@ -60,7 +62,7 @@ def _tree_allclose(a, b, **tol):
 @pytest.mark.timeout(420)
 def test_seed_phase_pretraining_and_planning(train, compiled):
     init, step, traces = compiled
-    assert train.steps_per_call == K * E and train.seed_steps == SEED_STEPS
+    assert train.config.train.steps_per_call == K * E and train.seed_steps == SEED_STEPS
     assert train.pretrain_updates == 75
     state = init(jax.random.PRNGKey(0))
     params0 = jax.device_get(state.agent.params)
@@ -86,7 +88,6 @@ def test_seed_phase_pretraining_and_planning(train, compiled):
 
     for i, (_, m) in enumerate(history, start=1):
         assert int(m["env_steps"]) == i * K * E
-        assert int(m["buffer/transitions"]) == i * K * E
         assert int(m["nonfinite_obs"]) == 0 and int(m["nonfinite_loss"]) == 0
     # Each chunk of 25 steps ends an episode of 50 steps per env every other chunk.
     assert [int(m["episode/count"]) for _, m in history] == [0, 2, 0, 2, 0, 2]
@@ -99,7 +100,8 @@ def test_seed_phase_pretraining_and_planning(train, compiled):
             assert np.isfinite(value), name
     # G = R_max: the best of the 6 recorded episode returns, each at most T.
     assert 0.0 < float(last["r_max"]) <= T
-    assert float(last["return_ref"]) == float(last["r_max"])
+    assert float(last["sirl/reference"]) == float(last["r_max"])
+    assert 0.0 <= float(last["sirl/clamped_fraction"]) <= 1.0
 
 
 @pytest.mark.timeout(420)
@@ -164,9 +166,9 @@ def test_config_validation_names_the_field():
         TrainConfig(num_envs=0)
     cfg = Config(agent=AgentConfig.tiny(sirl=SirlConfig(g_source="target")))
     with pytest.raises(ValueError, match="success bar"):
-        cfg.validate_for_task(episode_length=100, success_bar=None)
+        make_agent(cfg.agent, obs_size=3, action_size=1, episode_length=100, success_bar=None)
     with pytest.raises(ValueError, match="episode_length"):
-        cfg.validate_for_task(episode_length=3, success_bar=1.0)
+        cfg.validate_for_task(episode_length=3)
 
 
 def test_presets():
@@ -186,4 +188,49 @@ def test_target_return_ref_needs_a_success_bar():
         cfg, agent=dataclasses.replace(cfg.agent, sirl=SirlConfig(g_source="target"))
     )
     tr = make_train(cfg, PendulumSwingup(episode_length=T))
-    assert tr.return_ref == "success_bar"
+    assert float(tr.agent.sirl_reference(123.0)) == PendulumSwingup(episode_length=T).success_bar
+    plain = make_train(_config(), PendulumSwingup(episode_length=T))
+    assert float(plain.agent.sirl_reference(123.0)) == 123.0
+
+
+def _schedule(planning, env_steps, debt, can_sample=True, **kw):
+    args = dict(num_envs=4, utd=0.75, seed_steps=100, pretrain_updates=75)
+    args.update(kw)
+    num, debt, planning = update_schedule(
+        jnp.asarray(planning), jnp.asarray(env_steps), jnp.float32(debt), jnp.asarray(can_sample),
+        **args,
+    )
+    return int(num), float(debt), bool(planning)
+
+
+def test_update_schedule_by_hand():
+    # Seed phase: nothing owed, nothing carried.
+    assert _schedule(False, 96, 0.0) == (0, 0.0, False)
+    # The step reaching seed_steps starts planning with the pretraining burst.
+    assert _schedule(False, 100, 0.0) == (75, 0.0, True)
+    # ...but not before the buffer can sample: planning waits, nothing is owed.
+    assert _schedule(False, 100, 0.0, can_sample=False) == (0, 0.0, False)
+    # Planning: 4 envs x 0.75 = 3 per step; with utd 0.3, 1.2 per step carries 0.2 each time.
+    assert _schedule(True, 104, 0.0) == (3, 0.0, True)
+    num, debt, _ = _schedule(True, 104, 0.0, utd=0.3)
+    assert num == 1 and debt == pytest.approx(0.2)
+    num, debt, _ = _schedule(True, 108, 0.8, utd=0.3)  # 0.8 + 1.2 = 2.0: two, nothing left
+    assert num == 2 and debt == pytest.approx(0.0, abs=1e-6)
+    num, debt, _ = _schedule(True, 108, 0.5, num_envs=1, utd=0.25)  # 0.75: none yet
+    assert num == 0 and debt == pytest.approx(0.75)
+
+
+def test_cpu_presets_fit_a_task_with_long_episodes():
+    smoke = get_preset("smoke")
+    same, derived = fit_to_task(smoke, 250)  # the pendulum: the preset as it is
+    assert same == smoke and derived == {}
+    fitted, derived = fit_to_task(smoke, 1000)  # dmc:CartpoleSwingup, 4 envs
+    need = 2 * 4 * 1001
+    assert derived == {"train.buffer_size": (4_000, need), "train.steps": (4_000, need),
+                       "train.seed_steps": (1_000, 4_000), "train.eval_every": (2_000, 4_000)}
+    assert fitted.train.capacity == need and fitted.agent == smoke.agent
+    fitted.validate_for_task(1000)  # one episode per env fits
+    with pytest.raises(ValueError, match="train.buffer_size"):
+        smoke.validate_for_task(1000)
+    cpu, derived = fit_to_task(get_preset("cpu"), 1000)
+    assert cpu.train.seed_steps is None and derived["train.eval_every"] == (2_000, 8_000)

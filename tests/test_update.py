@@ -15,6 +15,7 @@ from sirl_jax.agent.networks import init_params
 from sirl_jax.agent.world_model import make_world_model
 from sirl_jax.types import Batch
 
+R_MAX = jnp.array(100.0)  # the buffer R_max the updates receive (G = R_max)
 O, A, T, H, B = 10, 4, 100, 3, 8
 BASE = AgentConfig.tiny()
 
@@ -31,7 +32,6 @@ def _batch(key):
         reward=jax.random.uniform(k3, (H, B), minval=-1.0, maxval=3.0),
         terminated=jnp.zeros((H, B)),
         episode_return=jnp.linspace(-50.0, 150.0, B),
-        return_ref=jnp.array(100.0),
     )
 
 
@@ -51,7 +51,7 @@ def setup():
 @pytest.mark.timeout(240)
 def test_first_update_hand_values(setup):
     agents, updates, state, batch = setup
-    new, m = updates["beta1"](state, batch, jax.random.PRNGKey(2))
+    new, m = updates["beta1"](state, batch, R_MAX, jax.random.PRNGKey(2))
     rho_sum = 1 + 0.5 + 0.25
     # Zero-initialised heads: uniform logits, so each CE is ln(101); rho-weighted mean over H.
     assert float(m["reward_loss"]) == pytest.approx(math.log(101) * rho_sum / H, rel=1e-5)
@@ -95,8 +95,8 @@ def test_beta_zero_equals_plain_tdmpc2(setup):
     s0, s1 = state, state
     for i in range(3):
         key = jax.random.PRNGKey(10 + i)
-        s0, m0 = updates["beta0"](s0, batch, key)
-        s1, m1 = updates["plain"](s1, batch, key)
+        s0, m0 = updates["beta0"](s0, batch, R_MAX, key)
+        s1, m1 = updates["plain"](s1, batch, R_MAX, key)
     for a, b in zip(jax.tree_util.tree_leaves(s0), jax.tree_util.tree_leaves(s1), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-6)
     for k in m1:
@@ -108,8 +108,8 @@ def test_beta_zero_equals_plain_tdmpc2(setup):
 def test_bc_term_changes_only_the_policy(setup):
     _, updates, state, batch = setup
     key = jax.random.PRNGKey(3)
-    s1, m1 = updates["beta1"](state, batch, key)
-    s0, _ = updates["beta0"](state, batch, key)
+    s1, m1 = updates["beta1"](state, batch, R_MAX, key)
+    s0, _ = updates["beta0"](state, batch, R_MAX, key)
     for name in ("encoder", "dynamics", "reward", "qs"):
         for a, b in zip(
             jax.tree_util.tree_leaves(s1.params[name]),
@@ -129,7 +129,7 @@ def test_updates_reduce_world_model_loss(setup):
     _, updates, state, batch = setup
     s, first = state, None
     for i in range(40):
-        s, m = updates["beta1"](s, batch, jax.random.PRNGKey(100 + i))
+        s, m = updates["beta1"](s, batch, R_MAX, jax.random.PRNGKey(100 + i))
         first = m if first is None else first
     assert float(m["reward_loss"]) < float(first["reward_loss"]) - 0.1
     assert float(m["wm_loss"]) < float(first["wm_loss"])
@@ -203,3 +203,38 @@ def test_bc_loglik_by_hand_and_per_dimension_scale():
     for form, ref in (("mse_mean", out.mean_action), ("mse_sample", out.action)):
         want = np.array([0.5, 1.0]) * np.mean((np.asarray(ref) - np.asarray(act)) ** 2, -1)
         np.testing.assert_allclose(bc[form][0], want, rtol=1e-5)
+
+
+@pytest.mark.timeout(120)
+def test_bc_reduce_sum_and_mean_by_hand():
+    """A hand-made policy output: mu = 0, log sigma = 0 on A = 2 dims, so per dimension
+    -log pi_i(a_i) = 0.5 atanh(a_i)^2 + 0.5 log(2 pi) + log(1 - a_i^2 + 1e-6)."""
+    from sirl_jax.agent.world_model import PolicyOutput
+
+    a = np.array([[0.5, -0.25]])  # [B=1, A=2]
+    per_dim = 0.5 * np.arctanh(a) ** 2 + 0.5 * math.log(2 * math.pi) + np.log(1 - a**2 + 1e-6)
+    zeros = jnp.zeros((2, 1, 2))  # [H+1=2, B, A]
+    out = PolicyOutput(zeros, zeros, zeros, zeros, zeros, jnp.zeros((2, 1)), jnp.zeros((2, 1)))
+    omega = jnp.array([0.5])
+    for reduce, want in (("mean", per_dim.mean(-1)), ("sum", per_dim.sum(-1))):
+        cfg = dataclasses.replace(BASE, sirl=SirlConfig(bc_reduce=reduce))
+        got = L.bc_term(cfg, out, jnp.asarray(a)[None], omega)
+        np.testing.assert_allclose(got[0], 0.5 * want, rtol=1e-5)
+    # The mse forms reduce the same way: squared errors (0.5^2, 0.25^2) to tanh(mu) = 0.
+    cfg = dataclasses.replace(BASE, sirl=SirlConfig(bc_form="mse_mean", bc_reduce="sum"))
+    got = L.bc_term(cfg, out, jnp.asarray(a)[None], omega)
+    np.testing.assert_allclose(got[0], 0.5 * (0.25 + 0.0625), rtol=1e-6)
+    with pytest.raises(ValueError, match="bc_reduce"):
+        SirlConfig(bc_reduce="max")
+
+
+@pytest.mark.timeout(60)
+def test_clamped_fraction_on_a_hand_made_batch():
+    # 12 components: 4 exactly at the clamp (+-1), 2 more within 1e-6 of it, 1 within 2e-3.
+    acts = jnp.array([[[1.0, -1.0, 0.3], [0.0, 1.0 - 1e-7, -0.5]],
+                      [[-1.0, 0.999, 0.2], [1.0, 0.1, -0.999999]]])  # fmt: skip
+    assert float(L.clamped_fraction(acts, 1e-6)) == pytest.approx(6 / 12)
+    assert float(L.clamped_fraction(acts, 1e-8)) == pytest.approx(4 / 12)
+    assert float(L.clamped_fraction(acts, 2e-3)) == pytest.approx(7 / 12)
+    with pytest.raises(ValueError, match="action_clip"):
+        SirlConfig(action_clip=0.0)

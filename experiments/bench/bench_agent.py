@@ -66,7 +66,6 @@ def synthetic_batch(cfg: AgentConfig, obs: int, act: int, key: jax.Array) -> Bat
         reward=jnp.ones((H, B)),
         terminated=jnp.zeros((H, B)),
         episode_return=jnp.linspace(0.0, 100.0, B),
-        return_ref=jnp.array(100.0),
     )
 
 
@@ -115,7 +114,7 @@ def main() -> None:
         f"O={O} A={A} iterations={agent.iterations}"
     )
     rows = []
-    upd, c_upd = compile_timed(agent.update, state, batch, k)
+    upd, c_upd = compile_timed(agent.update, state, batch, jnp.float32(100.0), k)
     ms = time_calls(upd, (state, batch, k), args.reps)
     rows.append(("update B=256", ms, update_flops(cfg, O, A), matmul_gflops(H * B, Z, Z), c_upd))
     mapped = make_agent(dataclasses.replace(cfg, plan_env_chunk=1), O, A, episode_length=1000)

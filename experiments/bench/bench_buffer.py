@@ -16,8 +16,9 @@ import time
 import jax
 import jax.numpy as jnp
 
-from sirl_jax.buffer import check_buffer_fits, make_buffer
-from sirl_jax.compile_cache import enable_compilation_cache
+from sirl_jax.buffer import make_buffer
+from sirl_jax.run.buffer_memory import check_buffer_fits
+from sirl_jax.run.compile_cache import enable_compilation_cache
 
 OBS, ACT, HORIZON, BATCH = 151, 61, 3, 256
 

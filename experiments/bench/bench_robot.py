@@ -26,8 +26,8 @@ import mujoco
 import numpy as np
 from mujoco import mjx, rollout
 
-from sirl_jax.compile_cache import enable_compilation_cache
 from sirl_jax.envs import h1
+from sirl_jax.run.compile_cache import enable_compilation_cache
 
 CHUNK = 20  # control steps per jitted scan
 _EULERDAMP = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)

@@ -25,9 +25,9 @@ import jax.numpy as jnp
 import tyro
 
 from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
-from sirl_jax.compile_cache import enable_compilation_cache
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs.classic import PendulumSwingup
+from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.train import Train, make_train
 from sirl_jax.types import Batch
 
@@ -105,7 +105,7 @@ def _parts(train: Train, state, k: int, e: int, n_upd: int):
         # The metrics are part of an update's work: sum them so that XLA cannot drop them.
         def body(i, carry):
             s, total = carry
-            s, m = agent.update(s, batch, jax.random.fold_in(key, i))
+            s, m = agent.update(s, batch, buffer.r_max(state.buffer), jax.random.fold_in(key, i))
             return s, total + sum(jnp.mean(v) for v in m.values())
 
         return jax.lax.fori_loop(0, k * n_upd, body, (agent_state, jnp.zeros(())))
@@ -166,13 +166,12 @@ def bench_sirl(agent_cfg: AgentConfig, repeats: int, num_updates: int = 50) -> N
             reward=jax.random.uniform(key, (h, b)),
             terminated=jnp.zeros((h, b)),
             episode_return=jax.random.uniform(key, (b,), maxval=50.0),
-            return_ref=jnp.float32(50.0),
         )
 
         @jax.jit
         def run(s, agent=agent, batch=batch, key=key):
             def body(i, s):
-                return agent.update(s, batch, jax.random.fold_in(key, i))[0]
+                return agent.update(s, batch, jnp.float32(50.0), jax.random.fold_in(key, i))[0]
 
             return jax.lax.fori_loop(0, num_updates, body, s)
 

@@ -50,7 +50,8 @@ def _batch(cfg: AgentConfig) -> Batch:
 def _update_case(cfg: AgentConfig, relu: bool = False):
     """(jitted update compiled now, args); `relu` traces the networks with ReLU for Mish."""
     agent = make_agent(cfg, O, A, episode_length=1000)
-    args = (agent.init(jax.random.PRNGKey(0)), _batch(cfg), jax.random.PRNGKey(2))
+    r_max = jnp.float32(100.0)
+    args = (agent.init(jax.random.PRNGKey(0)), _batch(cfg), r_max, jax.random.PRNGKey(2))
     with mock.patch("jax.nn.mish", jax.nn.relu) if relu else contextlib.nullcontext():
         compiled = jax.jit(agent.update).lower(*args).compile()
     return compiled, args
@@ -82,7 +83,9 @@ def _piece_cases(cfg: AgentConfig) -> dict[str, tuple]:
         return jax.grad(loss)(qs)
 
     def pi_grad(p, k):
-        loss = lambda p: L.policy_loss(wm, cfg, p, params["qs"], zs, state.scale, batch, k)[0]
+        loss = lambda p: L.policy_loss(
+            wm, cfg, p, params["qs"], zs, state.scale, batch, jnp.float32(100.0), k
+        )[0]
         return jax.grad(loss)(p)
 
     tx = _wm_optimizer(cfg)

@@ -48,10 +48,12 @@ class Agent:
     obs_size: int
     action_size: int
     episode_length: int
+    success_bar: float | None
     discount: float
     iterations: int
     init: Callable  # (key) -> AgentState
-    update: Callable  # (AgentState, Batch, key) -> (AgentState, metrics)
+    update: Callable  # (AgentState, Batch, r_max [], key) -> (AgentState, metrics)
+    sirl_reference: Callable  # (r_max []) -> G [] of the self-imitative weight
     init_planner: Callable  # (num_envs) -> PlannerState
     plan: Callable  # (AgentState, PlannerState, obs[E, O], first[E], key, eval_mode)
     act_policy: Callable  # (AgentState, obs[E, O], key, eval_mode) -> action[E, A]
@@ -79,8 +81,22 @@ def polyak(target, online, tau: float):
     return jax.tree_util.tree_map(lambda t, o: (1.0 - tau) * t + tau * o, target, online)
 
 
-def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length: int) -> Agent:
-    """Builds the agent for static sizes; gamma and MPPI iterations are derived here."""
+def make_agent(
+    cfg: AgentConfig,
+    obs_size: int,
+    action_size: int,
+    episode_length: int,
+    success_bar: float | None = None,
+) -> Agent:
+    """Builds the agent for static sizes; gamma, MPPI iterations and G's source are fixed here.
+
+    success_bar: the task's R_target; required when `cfg.sirl.g_source == "target"`.
+    """
+    if cfg.sirl.enabled and cfg.sirl.g_source == "target" and success_bar is None:
+        raise ValueError(
+            "agent.sirl.g_source='target' is invalid for a task without a success bar; "
+            "allowed: 'rmax'"
+        )
     for name, v in (
         ("obs_size", obs_size),
         ("action_size", action_size),
@@ -132,8 +148,19 @@ def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length
             scale=jnp.ones((), jnp.float32),
         )
 
-    def update(state: AgentState, batch: Batch, key: jax.Array) -> tuple[AgentState, dict]:
-        """One gradient step: world model; policy on detached latents and updated Qs; Polyak."""
+    def sirl_reference(r_max: jax.Array) -> jax.Array:
+        """G of the self-imitative weight: the buffer's R_max, or the success bar (`g_source`)."""
+        if cfg.sirl.g_source == "target":  # NaN only when the term is off and there is no bar
+            return jnp.float32(jnp.nan if success_bar is None else success_bar)
+        return jnp.asarray(r_max, jnp.float32)
+
+    def update(
+        state: AgentState, batch: Batch, r_max: jax.Array, key: jax.Array
+    ) -> tuple[AgentState, dict]:
+        """One gradient step: world model; policy on detached latents and updated Qs; Polyak.
+
+        r_max: [] the replay buffer's R_max (`Buffer.r_max`); G follows `cfg.sirl.g_source`.
+        """
         k_wm, k_pi = jax.random.split(key)
         wm_params = {k: state.params[k] for k in keys}
         pi_params = state.params["policy"]
@@ -149,7 +176,15 @@ def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length
 
         pi_grad_fn = jax.value_and_grad(
             lambda p: losses.policy_loss(
-                wm, cfg, p, losses.sg(wm_params["qs"]), losses.sg(zs), state.scale, batch, k_pi
+                wm,
+                cfg,
+                p,
+                losses.sg(wm_params["qs"]),
+                losses.sg(zs),
+                state.scale,
+                batch,
+                sirl_reference(r_max),
+                k_pi,
             ),
             has_aux=True,
         )
@@ -186,15 +221,17 @@ def make_agent(cfg: AgentConfig, obs_size: int, action_size: int, episode_length
         return out.mean_action if eval_mode else out.action
 
     return Agent(
-        cfg,
-        obs_size,
-        action_size,
-        episode_length,
-        discount,
-        iterations,
-        init,
-        update,
-        planner.init,
-        plan,
-        act_policy,
+        cfg=cfg,
+        obs_size=obs_size,
+        action_size=action_size,
+        episode_length=episode_length,
+        success_bar=success_bar,
+        discount=discount,
+        iterations=iterations,
+        init=init,
+        update=update,
+        sirl_reference=sirl_reference,
+        init_planner=planner.init,
+        plan=plan,
+        act_policy=act_policy,
     )

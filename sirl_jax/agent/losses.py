@@ -14,7 +14,7 @@ from sirl_jax.agent.world_model import (
     LOG_2PI,
     PolicyOutput,
     WorldModel,
-    squashed_log_likelihood,
+    squashed_log_likelihood_dims,
 )
 from sirl_jax.types import Batch
 
@@ -126,20 +126,27 @@ def bc_term(cfg: AgentConfig, pi_out: PolicyOutput, actions: jax.Array, omega: j
     """Self-imitative BC per step: [H, B] loss terms (to be rho-weighted).
 
     pi_out is the policy-loss forward pass on z_0..z_H ([H+1, B, ...]); the term reuses its
-    first H steps instead of running the policy network again.
-    loglik: -omega * log pi(a_t | z_t) / A; the mean over action dimensions keeps the term at the
-    O(1) scale of Q/S (a sum over 61 dims of a log density reaches hundreds). mse_*: omega * MSE.
+    first H steps instead of running the policy network again. Per action dimension the term
+    is -log pi_i(a_i | z_t) (loglik) or the squared error (mse_*); `sirl.bc_reduce` combines
+    the A dimensions by their mean (the default: O(1) like Q/S, where the paper's plain sum of
+    a 61-dim log density reaches hundreds) or their sum (the paper's log pi).
     """
-    A = actions.shape[-1]
-    form = cfg.sirl.bc_form
-    if form == "loglik":
-        log_lik = squashed_log_likelihood(pi_out.mu[:-1], pi_out.log_std[:-1], actions)
-        per_step = -log_lik / A
-    elif form == "mse_sample":
-        per_step = jnp.mean((pi_out.action[:-1] - actions) ** 2, axis=-1)
+    sirl = cfg.sirl
+    if sirl.bc_form == "loglik":
+        per_dim = -squashed_log_likelihood_dims(
+            pi_out.mu[:-1], pi_out.log_std[:-1], actions, sirl.action_clip
+        )
+    elif sirl.bc_form == "mse_sample":
+        per_dim = (pi_out.action[:-1] - actions) ** 2
     else:
-        per_step = jnp.mean((pi_out.mean_action[:-1] - actions) ** 2, axis=-1)
-    return omega[None] * per_step
+        per_dim = (pi_out.mean_action[:-1] - actions) ** 2
+    reduce = jnp.mean if sirl.bc_reduce == "mean" else jnp.sum
+    return omega[None] * reduce(per_dim, axis=-1)
+
+
+def clamped_fraction(actions: jax.Array, clip: float) -> jax.Array:
+    """[] fraction of action components at the clamp, |a| >= 1 - clip (MPPI clamps to +-1)."""
+    return jnp.mean((jnp.abs(actions) >= 1.0 - clip).astype(jnp.float32))
 
 
 def policy_loss(
@@ -150,12 +157,14 @@ def policy_loss(
     zs: jax.Array,
     scale: jax.Array,
     batch: Batch,
+    return_ref: jax.Array,
     key: jax.Array,
 ) -> tuple[jax.Array, tuple[jax.Array, dict]]:
     """Policy-prior loss (spec §2.5) plus, when cfg.sirl.enabled, the BC term (spec §5).
 
     Args:
       zs: [H+1, B, Z] detached rollout latents; qs_params: detached, updated online Q params.
+      return_ref: [] G of the self-imitative weight (`Agent.sirl_reference`).
     Returns:
       loss []; aux = (updated running scale [], metrics).
     """
@@ -184,7 +193,7 @@ def policy_loss(
     }
     loss = rl
     if cfg.sirl.enabled:
-        omega = sirl_weight(batch.episode_return, batch.return_ref, cfg.sirl)
+        omega = sirl_weight(batch.episode_return, return_ref, cfg.sirl)
         bc = bc_term(cfg, out, batch.action, omega)
         bc_loss = jnp.sum(w[:-1] * jnp.mean(bc, axis=1)) / Hp1
         loss = rl + bc_loss
@@ -193,5 +202,6 @@ def policy_loss(
     else:
         metrics["sirl_loss"] = jnp.zeros(())
         metrics["sirl_weight_mean"] = jnp.zeros(())
+    metrics["sirl/clamped_fraction"] = clamped_fraction(batch.action, cfg.sirl.action_clip)
     metrics["pi_loss"] = loss
     return loss, (new_scale, metrics)

@@ -79,7 +79,8 @@ def mppi_update(
     Returns:
       mean [H, A], std [H, A] (clamped to [min_std, max_std]), elite actions [H, K, A], scores [K].
     """
-    values = jnp.where(jnp.isnan(values), 0.0, values)  # reference: nan_to_num on the values
+    # The reference's nan_to_num(0): NaN -> 0, +-inf -> the largest finite float32 of that sign.
+    values = jnp.nan_to_num(values, nan=0.0)
     elite_v, idx = jax.lax.top_k(values, cfg.num_elites)
     elites = actions[:, idx]
     scores = jnp.exp(cfg.temperature * (elite_v - elite_v[0]))  # top_k is sorted: [0] is the max

@@ -20,15 +20,25 @@ from sirl_jax.agent.networks import make_modules
 LOG_2PI = math.log(2.0 * math.pi)
 
 
-def squashed_log_likelihood(mu: jax.Array, log_std: jax.Array, a: jax.Array) -> jax.Array:
-    """log pi(a) of a given action a in [-1, 1] under tanh(N(mu, exp(log_std))) ([..., A] -> [...]).
+def squashed_log_likelihood_dims(
+    mu: jax.Array, log_std: jax.Array, a: jax.Array, clip: float = 1e-6
+) -> jax.Array:
+    """Per-dimension log density of a given action a in [-1, 1] under tanh(N(mu, exp(log_std)))
+    ([..., A] -> [..., A]; the sum over the last axis is log pi(a)).
 
-    a is clipped to +-(1 - 1e-6) before arctanh; the tanh correction uses the same 1e-6 as `pi`.
+    a is clipped to +-(1 - clip) before arctanh; the tanh correction uses the same 1e-6 as `pi`.
     """
-    a = jnp.clip(a, -1.0 + 1e-6, 1.0 - 1e-6)
+    a = jnp.clip(a, -1.0 + clip, 1.0 - clip)
     x = (jnp.arctanh(a) - mu) * jnp.exp(-log_std)
-    lp_g = jnp.sum(-0.5 * x**2 - log_std, axis=-1) - 0.5 * LOG_2PI * a.shape[-1]
-    return lp_g - jnp.sum(jnp.log(jnp.maximum(0.0, 1.0 - a**2) + 1e-6), axis=-1)
+    lp_g = -0.5 * x**2 - log_std - 0.5 * LOG_2PI
+    return lp_g - jnp.log(jnp.maximum(0.0, 1.0 - a**2) + 1e-6)
+
+
+def squashed_log_likelihood(
+    mu: jax.Array, log_std: jax.Array, a: jax.Array, clip: float = 1e-6
+) -> jax.Array:
+    """log pi(a) of an action a in [-1, 1] under tanh(N(mu, exp(log_std))) ([..., A] -> [...])."""
+    return jnp.sum(squashed_log_likelihood_dims(mu, log_std, a, clip), axis=-1)
 
 
 class PolicyOutput(NamedTuple):

@@ -67,7 +67,19 @@ class Env(abc.ABC):
     `step` must set `obs`, `reward`, `terminated`, `physics`, `task` and `metrics`; the
     bookkeeping fields (`truncated`, `final_obs`, `first`, `step_count`, returns) belong to
     `VecEnv`. Use `init_state` to build a fresh state in `reset`.
+
+    MJX envs set `mj_model` (the CPU `mujoco.MjModel` of their whole scene) so a rollout can be
+    drawn with MuJoCo's renderer; `mjx_data(physics)` is the `mjx.Data` in their physics state.
     """
+
+    mj_model: Any = None
+    """The scene's `mujoco.MjModel` (None: the env cannot be rendered)."""
+    control_dt: float = 0.02
+    """Simulated seconds per control step (50 Hz: HumanoidBench and the pendulum)."""
+
+    def mjx_data(self, physics: Any) -> Any:
+        """The `mjx.Data` inside `EnvState.physics` (MJX envs: `physics` itself)."""
+        return physics
 
     @property
     @abc.abstractmethod

@@ -33,7 +33,7 @@ from mujoco import mjx
 from sirl_jax.envs import h1
 from sirl_jax.envs.base import Env, EnvState, init_state
 
-FRAME_SKIP = 10
+FRAME_SKIP = h1.N_SUBSTEPS
 """Physics substeps per control step (dt 0.002 s -> 50 Hz control), as in HumanoidBench."""
 RESET_NOISE = 0.01
 
@@ -167,6 +167,7 @@ class HumanoidEnv(Env):
         self.robot = h1.Robot(self.mj_model)
         task.bind(self.mj_model, self.robot)
         self.mx = mjx.put_model(self.mj_model)
+        self._control_step = h1.make_control_step(FRAME_SKIP)
         self._qpos0 = jnp.asarray(self.mj_model.key_qpos[0], jnp.float32)
         nq, nv = self.mj_model.nq, self.mj_model.nv
         self._obs_size = nq + nv + task.extra_obs_size
@@ -216,13 +217,7 @@ class HumanoidEnv(Env):
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         """One control step: 10 physics substeps, then reward/termination of the returned data."""
-        ctrl = self.robot.action_to_ctrl(action)
-        data = state.physics.replace(ctrl=ctrl)
-
-        def substep(d: mjx.Data, _) -> tuple[mjx.Data, None]:
-            return mjx.step(self.mx, d), None
-
-        data, _ = jax.lax.scan(substep, data, None, length=FRAME_SKIP)
+        data = self._control_step(self.mx, state.physics, self.robot.action_to_ctrl(action))
         reward, terminated, task_state, metrics = self.task.evaluate(self.robot, data, state.task)
         obs = self._observe(data, task_state)
         metrics = {k: jnp.asarray(v, jnp.float32) for k, v in metrics.items()}

@@ -23,11 +23,7 @@ from sirl_jax.envs.base import Env, EnvState, init_state
 from sirl_jax.envs.registry import TASKS, TaskSpec, register
 
 PREFIXES = ("dmc:", "playground:")
-
-
-def is_playground_task(name: str) -> bool:
-    """True for names this adapter handles (`dmc:...`, `playground:...`)."""
-    return name.startswith(PREFIXES)
+"""Task-name prefixes this adapter handles."""
 
 
 def _import_playground():
@@ -80,6 +76,17 @@ class PlaygroundEnv(Env):
                 raise ValueError(f"dict observation without a 'state' entry: keys {list(obs)}")
             obs = obs["state"]
         return obs
+
+    @property
+    def mj_model(self):
+        return self.env.mj_model
+
+    @property
+    def control_dt(self) -> float:
+        return float(self.env.dt) * self.action_repeat
+
+    def mjx_data(self, physics: Any) -> Any:
+        return physics.data
 
     @property
     def observation_size(self) -> int:

@@ -15,7 +15,6 @@ Everything here runs on the host at chunk boundaries; values are plain Python fl
 from __future__ import annotations
 
 import csv
-import dataclasses
 import datetime
 import importlib.metadata
 import json
@@ -25,10 +24,11 @@ import platform
 import subprocess
 import sys
 import time
-import typing
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
+
+from sirl_jax.config import Config, config_from_dict
 
 _PACKAGES = (
     "jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "optax", "orbax-checkpoint", "chex",
@@ -48,50 +48,13 @@ class RunDirError(ValueError):
     """A run directory or its config.json is missing, taken, or unreadable."""
 
 
-def config_to_dict(config: Any) -> dict:
-    return dataclasses.asdict(config)
-
-
-def config_from_dict(cls: type, data: dict, where: str = "config") -> Any:
-    """Rebuilds a (nested, frozen) config dataclass from `config_to_dict` output."""
-    hints = typing.get_type_hints(cls)
-    unknown = sorted(set(data) - {f.name for f in dataclasses.fields(cls)})
-    if unknown:
-        raise RunDirError(f"{where}: unknown fields {unknown} (written by another version?)")
-    kwargs = {}
-    for name, value in data.items():
-        hint = hints[name]
-        if dataclasses.is_dataclass(hint) and isinstance(value, dict):
-            value = config_from_dict(hint, value, f"{where}.{name}")
-        elif isinstance(value, list):
-            value = tuple(value)
-        kwargs[name] = value
-    return cls(**kwargs)
-
-
-def flatten_config(config: Any) -> dict[str, Any]:
-    """{'train.steps': 1000, 'agent.sirl.beta': 1.0, ...} of a nested config dataclass."""
-    out = {}
-
-    def walk(prefix: str, obj: Any) -> None:
-        for f in dataclasses.fields(obj):
-            value = getattr(obj, f.name)
-            if dataclasses.is_dataclass(value):
-                walk(f"{prefix}{f.name}.", value)
-            else:
-                out[prefix + f.name] = value
-
-    walk("", config)
-    return out
-
-
-def load_config(run_dir: Path, cls: type) -> Any:
+def load_config(run_dir: Path) -> Config:
     """The config saved in `run_dir/config.json`; RunDirError if absent or invalid."""
     path = run_dir / "config.json"
     if not path.is_file():
         raise RunDirError(f"{run_dir} is not a run directory (no config.json)")
     try:
-        return config_from_dict(cls, json.loads(path.read_text()), str(path))
+        return config_from_dict(Config, json.loads(path.read_text()), str(path))
     except (TypeError, ValueError) as e:
         raise RunDirError(f"{path} is invalid: {e}") from e
 
@@ -154,7 +117,7 @@ def record_versions(run_dir: Path) -> None:
     write_json(path, [*entries, versions()])
 
 
-class _Csv:
+class CsvLog:
     """A CSV file whose header grows when a new key appears (the file is then rewritten)."""
 
     def __init__(self, path: Path):
@@ -219,7 +182,7 @@ class RunLog:
 
     def __init__(self, run_dir: Path, tensorboard: bool = True, wandb_run: Any = None):
         self.run_dir = run_dir
-        self._csv = {s: _Csv(run_dir / f"{s}.csv") for s in STREAMS}
+        self._csv = {s: CsvLog(run_dir / f"{s}.csv") for s in STREAMS}
         self._start = time.time()
         self._tb = None
         if tensorboard:
@@ -263,23 +226,30 @@ class RunLog:
 
 
 def describe_run(
-    config: Any, spec: Any, buffer_line: str, run_dir: Path, iterations: int | None = None
+    config: Config,
+    spec: Any,
+    buffer_line: str,
+    run_dir: Path,
+    iterations: int,
+    derived: Mapping[str, tuple] | None = None,
 ) -> str:
-    """The resolved-config lines printed before a run starts (config: a `Config`).
+    """The resolved-config lines printed before a run starts.
 
     iterations: the MPPI iterations the agent runs (`Agent.iterations`: +2 when the action
-    size is >= 20); default: the config's base count.
+    size is >= 20). derived: {field: (preset value, value used)} that `fit_to_task` raised.
     """
     import jax
 
     t, a = config.train, config.agent
-    its = a.iterations if iterations is None else iterations
+    its = iterations
     its_text = f"{its}" if its == a.iterations else f"{its} ({a.iterations} + 2 for A >= 20)"
     arch = a.arch
     sirl = (f"TDMPBC beta={a.sirl.beta:g} G={a.sirl.g_source} ({a.sirl.bc_form})"
             if a.sirl.enabled else "plain TD-MPC2 (no BC term)")  # fmt: skip
     bar = "none" if spec.success_bar is None else f"{spec.success_bar:g}"
     every = lambda n: f"{n:,}" if n else "never"
+    fitted = [f"sized for T={spec.episode_length}: " + ", ".join(
+        f"{k} {old:,} -> {new:,}" for k, (old, new) in derived.items())] if derived else []
     return "\n".join([
         f"task {spec.id} (T={spec.episode_length}, success bar {bar}), seed {t.seed}, "
         f"{t.steps:,} env steps, E={t.num_envs} x K={t.chunk_steps} per call, utd {t.utd:g}",
@@ -288,8 +258,9 @@ def describe_run(
         f"{a.num_samples} samples, batch {a.batch_size}, {sirl}",
         buffer_line,
         f"run dir {run_dir}: eval every {every(t.eval_every)}, checkpoint every "
-        f"{every(t.checkpoint_every)} (buffer {'saved' if t.save_buffer else 'not saved'}), "
+        f"{every(t.checkpoint_interval)} (buffer {'saved' if t.save_buffer else 'not saved'}), "
         f"log every {t.log_every:,}",
+        *fitted,
         f"device: {jax.default_backend()} ({jax.devices()[0].device_kind}, "
         f"{jax.device_count()} device(s))",
     ])  # fmt: skip

@@ -73,12 +73,6 @@ class Rate:
             self.env_rate = (env_steps - self._start[0]) / dt
             self.update_rate = (updates - self._start[1]) / dt
 
-    def eta(self, remaining_steps: int) -> float:
-        """Seconds for `remaining_steps` env steps at the measured rate (inf if unknown)."""
-        if not self.env_rate > 0:
-            return math.inf
-        return remaining_steps / self.env_rate
-
 
 class Progress:
     """A tqdm bar over env steps with steps/s, updates/s and the last episode return."""
@@ -143,7 +137,7 @@ def failures(metrics: Mapping[str, float]) -> list[str]:
     ]
 
 
-_LAST = ("env_steps", "updates", "planning", "r_max", "return_ref")
+_LAST = ("env_steps", "updates", "planning", "r_max", "sirl/reference")
 _SUM_SUFFIXES = ("/count", "/terminated", "/num_updates")
 
 

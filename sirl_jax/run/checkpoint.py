@@ -17,8 +17,6 @@ import json
 import logging
 import os
 import re
-import sys
-import time
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
@@ -32,6 +30,7 @@ import orbax.checkpoint as ocp
 CHECKSUMS = "sirl_checksums.json"
 _META = "meta"
 _LAYOUT = "_leaf_names"
+_SHAPES = "_leaf_shapes"
 
 # Orbax logs every save/restore at INFO through absl; the shell reports checkpoints itself.
 logging.getLogger("absl").setLevel(logging.WARNING)
@@ -70,6 +69,23 @@ def _flatten(tree: Any) -> tuple[list[str], list[Any], Any]:
         for i, (path, _) in enumerate(path_leaves)
     ]
     return names, [leaf for _, leaf in path_leaves], treedef
+
+
+def _layout_change(saved: list[str], expected: list[str]) -> str:
+    """Names the fields that differ between a saved and an expected leaf layout."""
+    strip = lambda names: [n.split("_", 1)[1] if "_" in n else n for n in names]
+    old, new = strip(saved), strip(expected)
+    gone, added = [n for n in old if n not in new], [n for n in new if n not in old]
+    if gone or added:
+        parts = []
+        if gone:
+            parts.append(f"it has {', '.join(gone[:5])}, which this version no longer stores")
+        if added:
+            parts.append(f"it lacks {', '.join(added[:5])}, which this version needs")
+        return "; ".join(parts)
+    pairs = itertools.zip_longest(saved, expected, fillvalue="(nothing)")
+    diff = next((a, b) for a, b in pairs if a != b)
+    return f"saved {diff[0]!r} where {diff[1]!r} is expected"
 
 
 def _abstract_leaf(x: Any) -> jax.ShapeDtypeStruct:
@@ -120,13 +136,14 @@ class Checkpointer:
             raise ValueError(f"item name {_META!r} is reserved")
         if step in self.steps():
             raise CheckpointError(f"checkpoint {self.step_dir(step)} already exists")
-        args, layout = {}, {}
+        args, layout, shapes = {}, {}, {}
         for item, tree in items.items():
             names, leaves, _ = _flatten(tree)
             layout[item] = names
+            shapes[item] = [list(np.shape(x)) for x in leaves]
             flat = {n: leaf for n, leaf in zip(names, leaves, strict=True) if np.size(leaf)}
             args[item] = ocp.args.StandardSave(flat)
-        args[_META] = ocp.args.JsonSave({**dict(meta or {}), _LAYOUT: layout})
+        args[_META] = ocp.args.JsonSave({**dict(meta or {}), _LAYOUT: layout, _SHAPES: shapes})
         try:
             self._manager.save(step, args=ocp.args.Composite(**args), force=True)
             self._manager.wait_until_finished()
@@ -172,6 +189,7 @@ class Checkpointer:
         """The JSON metadata saved with `step`."""
         meta = self._read_meta(step)
         meta.pop(_LAYOUT, None)
+        meta.pop(_SHAPES, None)
         return meta
 
     def restore(self, targets: Mapping[str, Any], step: int | None = None) -> dict[str, Any]:
@@ -195,18 +213,23 @@ class Checkpointer:
         self.verify(step)
         step_dir = self.step_dir(step)
         meta = self._read_meta(step)
-        layout = meta.pop(_LAYOUT, {})
+        layout, saved_shapes = meta.pop(_LAYOUT, {}), meta.pop(_SHAPES, {})
         args, flats = {}, {}
         for item, tree in targets.items():
             names, leaves, treedef = _flatten(tree)
             saved = layout.get(item)
             if saved is not None and saved != names:
-                pairs = itertools.zip_longest(saved, names, fillvalue="(nothing)")
-                diff = next((a, b) for a, b in pairs if a != b)
                 raise CheckpointError(
-                    f"checkpoint {step_dir} item {item!r} does not match this state's structure "
-                    f"(saved {diff[0]!r} where {diff[1]!r} is expected); saved by other code?"
+                    f"checkpoint {step_dir} item {item!r} was saved by other code: "
+                    f"{_layout_change(saved, names)}"
                 )
+            for name, old, x in zip(names, saved_shapes.get(item, []), leaves, strict=False):
+                if tuple(old) != tuple(np.shape(x)):
+                    raise CheckpointError(
+                        f"checkpoint {step_dir} item {item!r} is unreadable by this config: "
+                        f"{name.split('_', 1)[1]} has shape {tuple(old)}, this config needs "
+                        f"{tuple(np.shape(x))} (saved by another config or other code)"
+                    )
             flats[item] = (names, leaves, treedef)
             args[item] = ocp.args.StandardRestore(
                 {n: _abstract_leaf(x) for n, x in zip(names, leaves, strict=True) if np.size(x)}
@@ -229,71 +252,3 @@ class Checkpointer:
 
     def close(self) -> None:
         self._manager.close()
-
-
-# ---------------------------------------------------------------- train states
-# A train state here is a flax struct with `env_steps`, `updates` and a `buffer` field; the
-# buffer is its own item so it can be left out (`save_buffer=False`).
-
-
-def commit(state: Any) -> Any:
-    """Commits every leaf to the default device.
-
-    A fresh `init` output is uncommitted and a restored one committed; jit compiles one program
-    per kind, so both paths commit to share one compiled (and cached) train step.
-    """
-    return jax.device_put(state, jax.devices()[0])
-
-
-def copy_state(state: Any) -> Any:
-    """A device copy of `state` (jit it): the pre-chunk backup a donated step cannot keep."""
-    return jax.tree.map(jnp.copy, state)
-
-
-def save_state(ckpt: Checkpointer, state: Any, save_buffer: bool) -> int:
-    """Saves `state` as checkpoint `state.env_steps` (no-op if it exists); returns the step."""
-    step, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
-    if step not in ckpt.steps():
-        items = {"state": state.replace(buffer=None)}
-        if save_buffer:
-            items["buffer"] = state.buffer
-        meta = {"env_steps": step, "updates": updates, "save_buffer": save_buffer,
-                "time": time.time()}  # fmt: skip
-        ckpt.save(step, items, meta)
-    return step
-
-
-def restore_state(ckpt: Checkpointer, init: Any, key: jax.Array, step: int | None = None):
-    """(state, step) from checkpoint `step` (default: the latest), committed to the device.
-
-    Args:
-      ckpt: the run's checkpoints.
-      init: the train `init(key)`; only its output structure is used, unless the checkpoint
-        has no buffer, when the buffer of a fresh `init(key)` (empty) is used.
-      key: the run's PRNG key.
-      step: which checkpoint.
-    """
-    steps = ckpt.steps()
-    if not steps:
-        raise CheckpointError(f"no checkpoint in {ckpt.directory}: nothing to resume")
-    step = steps[-1] if step is None else step
-    if step not in steps:
-        raise CheckpointError(f"no checkpoint at env step {step}; available: {steps}")
-    abstract = jax.eval_shape(init, key)
-    has_buffer = "buffer" in ckpt.item_names(step)
-    targets = {"state": abstract.replace(buffer=None)}
-    if has_buffer:
-        targets["buffer"] = abstract.buffer
-    try:
-        restored = ckpt.restore(targets, step)
-    except CheckpointError as e:
-        older = [s for s in steps if s < step]
-        hint = f"; older checkpoints: {older} (--resume-step N)" if older else ""
-        raise CheckpointError(f"{e}; nothing was deleted{hint}") from e
-    if has_buffer:
-        buffer = restored["buffer"]
-    else:
-        print("note: the checkpoint has no replay buffer (--no-save-buffer); resuming with an "
-              "empty one", file=sys.stderr)  # fmt: skip
-        buffer = jax.jit(init)(key).buffer
-    return commit(restored["state"].replace(buffer=buffer)), step

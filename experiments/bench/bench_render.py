@@ -1,0 +1,67 @@
+"""Rendering speed: frames/s of `render`'s drawing loop at 640x480 (OSMesa unless MUJOCO_GL).
+
+    .venv/bin/python -m experiments.bench.bench_render [--task hurdle] [--frames 200]
+
+Rolls out uniform random actions in MJX for `--frames` control steps (1 episode, not timed),
+then times `write_video` (state copy + mj_forward + update_scene + render + caption + H.264
+encode) and, separately, the MuJoCo draw alone (update_scene + render) on the same states.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tempfile
+import time
+from pathlib import Path
+
+import tyro
+
+from sirl_jax.run.render import select_gl
+
+
+@dataclasses.dataclass(frozen=True)
+class Args:
+    task: str = "hurdle"
+    frames: int = 200
+    width: int = 640
+    height: int = 480
+
+
+def main(args: Args) -> None:
+    backend = select_gl()  # before MuJoCo is imported
+    import jax
+    import mujoco
+    import numpy as np
+
+    from sirl_jax.envs import load
+    from sirl_jax.run.render import _camera, copy_state, rollout_states, write_video
+
+    spec, env = load(args.task)
+
+    def act(s, aux, k):
+        return jax.random.uniform(k, (1, env.action_size), minval=-1.0, maxval=1.0), aux
+
+    physics, reward, done = jax.device_get(jax.jit(
+        lambda k: rollout_states(env, act, None, 1, k, args.frames))(jax.random.PRNGKey(0)))
+    done = np.zeros_like(done)  # draw every step, even past a fall
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        summary = write_video(env, physics, reward, done, Path(tmp) / "b.mp4", 50, args.width,
+                              args.height, spec.id)  # fmt: skip
+        full = summary["frames"] / (time.perf_counter() - t0)
+    model, data = env.mj_model, mujoco.MjData(env.mj_model)
+    renderer, camera = mujoco.Renderer(model, args.height, args.width), _camera(model)
+    qpos, qvel = np.asarray(physics.qpos), np.asarray(physics.qvel)
+    t0 = time.perf_counter()
+    for t in range(args.frames):
+        copy_state(model, data, qpos[t, 0], qvel[t, 0])
+        renderer.update_scene(data, camera)
+        renderer.render()
+    draw = args.frames / (time.perf_counter() - t0)
+    renderer.close()
+    print(f"{spec.id} {args.width}x{args.height} MUJOCO_GL={backend}: {full:.1f} frames/s "
+          f"written (draw + caption + encode), {draw:.1f} frames/s drawn alone")
+
+
+if __name__ == "__main__":
+    main(tyro.cli(Args))

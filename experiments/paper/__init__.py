@@ -1,0 +1,1 @@
+"""The TDMPBC paper's experiments as commands (see experiments/paper/README.md)."""

@@ -1,0 +1,270 @@
+"""Shared by the paper's commands: scales, S seeds vmapped in one program, resumable arms.
+
+`run_arm(config, seeds, out)` trains `seeds` seeds of one config as one vmapped program and
+writes, under `out`:
+  train.csv     per chunk and seed: env steps, wall-clock, training-episode return, R_max;
+  eval.csv      per evaluation and seed: planner and policy-prior return (eval mode);
+  checkpoints/  the vmapped train state after each evaluation (atomic, CRC-checked);
+  done.json     written last, with the arm's wall-clock and env steps/s.
+Run again with the same arguments it resumes from the newest checkpoint (CSV rows past it are
+dropped) or, when done.json exists, returns the recorded summary at once.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from sirl_jax.agent.config import AgentConfig, SirlConfig
+from sirl_jax.config import Config, TrainConfig
+from sirl_jax.envs import load
+from sirl_jax.run.checkpoint import Checkpointer
+from sirl_jax.run.compile_cache import enable_compilation_cache
+from sirl_jax.run.states import commit
+from sirl_jax.train import make_train
+
+# The paper's results table (HumanoidBench h1hand, return at 2M steps, mean ± std of 3 seeds):
+# task -> (success bar, (TDMPBC mean, std), (TD-MPC2 mean, std)). Transcribed from the paper.
+PAPER_TABLE = {
+    "walk": (700, (932.08, 0.82), (644.19, 344.25)),
+    "stand": (800, (929.67, 0.69), (749.79, 133.86)),
+    "run": (700, (874.58, 21.69), (66.14, 9.97)),
+    "reach": (12000, (7013.83, 685.29), (7120.75, 253.64)),
+    "hurdle": (700, (843.54, 63.58), (64.68, 9.7)),
+    "crawl": (700, (920.54, 45.88), (931.69, 33.19)),
+    "maze": (1200, (497.66, 124.5), (224.62, 25.65)),
+    "sit_simple": (750, (928.82, 1.12), (733.9, 255.79)),
+    "sit_hard": (750, (908.75, 2.27), (508.98, 365.77)),
+    "balance_simple": (800, (688.86, 239.99), (34.07, 4.42)),
+    "balance_hard": (800, (317.27, 379.72), (48.18, 8.49)),
+    "stair": (700, (640.37, 46.99), (66.5, 6.77)),
+    "slide": (700, (926.26, 2.17), (141.3, 19.09)),
+    "pole": (700, (958.58, 1.11), (207.46, 43.65)),
+}
+# The paper's runtime table: hours for 2M steps of 3 seeds on one V100.
+PAPER_HOURS = {"walk": (37.71, 35.23), "reach": (37.73, 36.46), "hurdle": (36.61, 35.34)}
+
+SCALES = ("paper", "cpu")
+
+
+def task_id(task: str, scale: str) -> str:
+    """paper: the h1hand task (61 actuators); cpu: the hand-less h1 variant (19)."""
+    return f"h1hand-{task}-v0" if scale == "paper" else f"h1-{task}-v0"
+
+
+def scale_config(scale: str, task: str, beta: float = 1.0, g_source: str = "rmax",
+                 steps: int | None = None) -> Config:  # fmt: skip
+    """The paper's config (5M model, 512 x 8 MPPI, 1 env, 2M steps), or its CPU stand-in: the
+    `cpu` preset's agent (latent 64, MLP 128, 2 Qs, 64 x 2 MPPI, batch 64) on 4 envs, UTD 0.25."""
+    if scale not in SCALES:
+        raise SystemExit(f"error: --scale {scale!r} is invalid; allowed: {', '.join(SCALES)}")
+    sirl = SirlConfig(beta=beta, g_source=g_source)
+    if scale == "paper":
+        return Config(agent=AgentConfig(entropy_form="v1", sirl=sirl),
+                      train=TrainConfig(task=task_id(task, scale), steps=steps or 2_000_000))
+    steps = steps or 80_000
+    return Config(
+        agent=AgentConfig(model_size="tiny", latent_dim=64, mlp_dim=128, enc_dim=64, num_q=2,
+                          num_samples=64, num_elites=8, num_pi_trajs=8, iterations=2,
+                          batch_size=64, sirl=sirl),
+        train=TrainConfig(task=task_id(task, scale), steps=steps, num_envs=4, chunk_steps=50,
+                          utd=0.25, seed_steps=5_000, buffer_size=steps,
+                          eval_every=max(steps // 4, 1), eval_episodes=4),
+    )  # fmt: skip
+
+
+class CsvRows:
+    """Appends rows to a CSV; `drop_after(step)` keeps rows with env_steps <= step."""
+
+    def __init__(self, path: Path, fields: list[str]):
+        self.path, self.fields = path, fields
+        if not path.exists():
+            with open(path, "w", newline="") as f:
+                csv.DictWriter(f, fieldnames=fields).writeheader()
+
+    def rows(self) -> list[dict]:
+        with open(self.path, newline="") as f:
+            return list(csv.DictReader(f))
+
+    def drop_after(self, step: int) -> None:
+        rows = [r for r in self.rows() if int(r["env_steps"]) <= step]
+        tmp = self.path.with_suffix(".tmp")
+        with open(tmp, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=self.fields)
+            writer.writeheader()
+            writer.writerows(rows)
+        tmp.replace(self.path)
+
+    def append(self, rows: list[dict]) -> None:
+        with open(self.path, "a", newline="") as f:
+            csv.DictWriter(f, fieldnames=self.fields).writerows(rows)
+
+
+def _finite(x: float, digits: int = 3):
+    return round(float(x), digits) if math.isfinite(float(x)) else ""
+
+
+def run_arm(config: Config, seeds: int, out: Path, label: str,
+            max_chunks: int | None = None) -> dict:  # fmt: skip
+    """Trains `seeds` seeds of `config` vmapped, resumably; returns done.json's summary.
+
+    max_chunks: stop after this many chunks of this call (a timing probe); nothing is marked
+    done then.
+    """
+    enable_compilation_cache()
+    if (out / "done.json").exists():
+        return json.loads((out / "done.json").read_text())
+    tc = config.train
+    train = make_train(config, load(tc.task)[1])
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.json").write_text(json.dumps(dataclasses.asdict(config), indent=1))
+    print(f"{label}: {tc.task}, {seeds} seeds x {tc.num_envs} envs, beta "
+          f"{config.agent.sirl.beta:g}, G {config.agent.sirl.g_source}, {tc.steps:,} steps per "
+          f"seed; {train.buffer.describe()}", flush=True)  # fmt: skip
+    keys = jax.random.split(jax.random.PRNGKey(0), seeds)
+    init = jax.vmap(train.init)
+    step = jax.jit(jax.vmap(train.step), donate_argnums=0)
+    evaluate = jax.jit(jax.vmap(train.evaluate))
+    eval_keys = jax.vmap(lambda k: jax.random.fold_in(k, 0x6576616C))(keys)
+    train_csv = CsvRows(out / "train.csv", ["seed", "env_steps", "wall_s", "episode_return",
+                                            "episode_length", "r_max", "updates"])  # fmt: skip
+    eval_csv = CsvRows(out / "eval.csv", ["seed", "env_steps", "wall_s", "planner_return",
+                                          "planner_length", "policy_return", "policy_length",
+                                          "r_max"])  # fmt: skip
+    ckpt = Checkpointer(out / "checkpoints", max_to_keep=2)
+    start, wall0 = time.perf_counter(), 0.0
+    if ckpt.latest_step() is not None:
+        restored = ckpt.restore({"state": jax.eval_shape(init, keys)})
+        state, done = commit(restored["state"]), ckpt.latest_step()
+        wall0 = float(restored["meta"]["wall_s"])
+        train_csv.drop_after(done)
+        eval_csv.drop_after(done)
+        print(f"{label}: resumed from env step {done:,} per seed", flush=True)
+    else:
+        state, done = commit(jax.jit(init)(keys)), 0
+
+    def run_eval(state, env_steps: int, wall: float) -> None:
+        ev = jax.device_get(evaluate(state, jax.vmap(jax.random.fold_in, (0, None))(
+            eval_keys, env_steps)))  # fmt: skip
+        eval_csv.append([{
+            "seed": s, "env_steps": env_steps, "wall_s": round(wall, 1),
+            "planner_return": _finite(ev["eval/planner_return"][s]),
+            "planner_length": float(ev["eval/planner_length"][s]),
+            "policy_return": _finite(ev["eval/policy_return"][s]),
+            "policy_length": float(ev["eval/policy_length"][s]),
+            "r_max": _finite(ev["eval/r_max"][s]),
+        } for s in range(seeds)])  # fmt: skip
+        print(f"{label}: eval @ {env_steps:,}: planner {np.round(ev['eval/planner_return'], 1)}"
+              f" policy {np.round(ev['eval/policy_return'], 1)} ({wall:.0f} s)", flush=True)
+
+    if done == 0 and max_chunks is None:
+        run_eval(state, 0, 0.0)
+    chunks, timing = 0, []
+    while done < tc.steps and (max_chunks is None or chunks < max_chunks):
+        state, m = step(state)
+        m = jax.device_get(m)
+        if m["nonfinite_obs"].any() or m["nonfinite_loss"].any():
+            raise SystemExit(f"error: {label}: non-finite values in the chunk after {done:,}")
+        before, done, chunks = done, int(m["env_steps"][0]), chunks + 1
+        wall = wall0 + time.perf_counter() - start
+        if bool(np.all(m["planning"] > 0)):
+            timing.append((time.perf_counter(), done))
+        train_csv.append([{
+            "seed": s, "env_steps": done, "wall_s": round(wall, 1),
+            "episode_return": _finite(m["episode/return"][s]),
+            "episode_length": _finite(m["episode/length"][s], 1),
+            "r_max": _finite(m["r_max"][s]), "updates": int(m["updates"][s]),
+        } for s in range(seeds)])  # fmt: skip
+        if max_chunks is None and (done // tc.eval_every > before // tc.eval_every
+                                   or done >= tc.steps):  # fmt: skip
+            run_eval(state, done, wall)
+            ckpt.save(done, {"state": state}, {"wall_s": wall})
+    ckpt.close()
+    rate = math.nan
+    if len(timing) >= 3:  # steady chunks: the first planning one still compiles or pretrains
+        (t0, s0), (t1, s1) = timing[1], timing[-1]
+        rate = (s1 - s0) / (t1 - t0)
+    summary = {"label": label, "task": tc.task, "seeds": seeds, "env_steps": done,
+               "wall_s": round(wall0 + time.perf_counter() - start, 1),
+               "env_steps_per_s_per_seed": round(rate, 2)}  # fmt: skip
+    if max_chunks is None:
+        (out / "done.json").write_text(json.dumps(summary, indent=1))
+    print(f"{label}: {summary}", flush=True)
+    return summary
+
+
+def final_returns(out: Path) -> np.ndarray:
+    """[S] planner return at the last evaluation of an arm."""
+    rows = CsvRows(out / "eval.csv", []).rows()
+    last = max(int(r["env_steps"]) for r in rows)
+    return np.array([float(r["planner_return"]) for r in rows if int(r["env_steps"]) == last])
+
+
+def write_summary(rows: list[dict], path: Path) -> None:
+    """Writes rows (dicts with the same keys) as a CSV."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def bar_plot(groups: dict[str, dict[str, tuple[float, float]]], path: Path, ylabel: str,
+             title: str, lines: dict[str, float] | None = None) -> None:  # fmt: skip
+    """Grouped bars: {group (x tick): {series: (mean, std)}}; optional dashed lines per group."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(groups)
+    series = sorted({s for g in groups.values() for s in g})
+    width = 0.8 / max(len(series), 1)
+    fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(names) * len(series) / 2 + 2), 4))
+    for i, s in enumerate(series):
+        xs = [j + (i - (len(series) - 1) / 2) * width for j in range(len(names))]
+        means = [groups[n].get(s, (math.nan, 0))[0] for n in names]
+        stds = [groups[n].get(s, (math.nan, 0))[1] for n in names]
+        ax.bar(xs, means, width, yerr=stds, label=s, capsize=3)
+    for j, n in enumerate(names):
+        if lines and n in lines:
+            ax.plot([j - 0.45, j + 0.45], [lines[n]] * 2, "k--", linewidth=1)
+    ax.set_xticks(range(len(names)), names)
+    ax.set(ylabel=ylabel, title=title)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def ablation(scale: str, tasks, seeds: int, steps: int | None, root: Path,
+             arms: dict[str, dict], title: str) -> list[dict]:  # fmt: skip
+    """Runs every arm (scale_config keyword overrides) on every task; writes CSV and PNG."""
+    rows, bars, lines = [], {}, {}
+    for task in tasks:
+        bars[task] = {}
+        for arm, overrides in arms.items():
+            cfg = scale_config(scale, task, steps=steps, **overrides)
+            run_arm(cfg, seeds, root / task / arm, f"{task} {arm}")
+            values = final_returns(root / task / arm)
+            bars[task][arm] = (values.mean(), values.std())
+            rows.append({"task": cfg.train.task, "arm": arm, "scale": scale,
+                         "steps": cfg.train.steps, "mean": round(values.mean(), 2),
+                         "std": round(values.std(), 2),
+                         "seeds": " ".join(f"{v:.2f}" for v in values)})  # fmt: skip
+        from sirl_jax.envs import spec
+
+        lines[task] = spec(cfg.train.task).success_bar
+    write_summary(rows, root / f"{root.name}.csv")
+    bar_plot(bars, root / f"{root.name}.png", "final eval return (planner)", title, lines)
+    for r in rows:
+        print(r)
+    return rows

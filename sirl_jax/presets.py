@@ -1,0 +1,128 @@
+"""Named configs: `get_preset(name)`; `PRESETS` refuses a duplicate name.
+
+  default        the reference: TD-MPC2 5M + TDMPBC (beta 1, G = R_max), HumanoidBench's settings.
+  tdmpbc-paper   the TDMPBC paper's runs: default with the HumanoidBench fork's 2023 policy
+                 log-prob (`entropy_form="v1"`), the one setting where the fork differs.
+  smoke          a CPU-sized run on the pendulum swing-up: tiny model, 4 envs, a few thousand steps.
+  cpu            a CPU-sized learning run on the pendulum swing-up (experiments/learning_check.py).
+
+The CPU presets fit any task (`fits_task`): the shell applies `config.fit_to_task` to them,
+which raises their episode-length-dependent sizes (replay capacity, seed steps, eval cadence)
+for tasks with longer episodes than the pendulum's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterator, Mapping
+
+from sirl_jax.agent.config import AgentConfig
+from sirl_jax.config import Config, TrainConfig
+
+
+@dataclasses.dataclass(frozen=True)
+class Preset:
+    """A named config: `factory()` builds it; `fits_task`: `fit_to_task` applies to it."""
+
+    factory: Callable[[], Config]
+    doc: str = ""
+    fits_task: bool = False
+
+
+class _Presets(Mapping[str, Preset]):
+    def __init__(self) -> None:
+        self._presets: dict[str, Preset] = {}
+
+    def register(self, name: str, preset: Preset) -> None:
+        if name in self._presets:
+            raise ValueError(f"preset {name!r} is already registered")
+        self._presets[name] = preset
+
+    def __getitem__(self, name: str) -> Preset:
+        if name not in self._presets:
+            raise KeyError(f"unknown preset {name!r}; valid presets: {', '.join(sorted(self))}")
+        return self._presets[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._presets)
+
+    def __len__(self) -> int:
+        return len(self._presets)
+
+
+PRESETS = _Presets()
+"""Named configs; `get_preset(name)` builds one. Registering a taken name raises ValueError."""
+
+
+def register_preset(
+    name: str, factory: Callable[[], Config], doc: str = "", fits_task: bool = False
+) -> None:
+    """Adds a named preset (a zero-argument factory returning a `Config`)."""
+    PRESETS.register(name, Preset(factory, doc, fits_task))
+
+
+def get_preset(name: str) -> Config:
+    """The `Config` of a named preset; a clear error lists the valid names."""
+    return PRESETS[name].factory()
+
+
+def _tdmpbc_paper() -> Config:
+    return Config(agent=AgentConfig(entropy_form="v1"))
+
+
+def _smoke() -> Config:
+    return Config(
+        agent=AgentConfig.tiny(batch_size=32),
+        train=TrainConfig(
+            task="pendulum",
+            steps=4_000,
+            num_envs=4,
+            chunk_steps=50,
+            seed_steps=1_000,
+            buffer_size=4_000,
+            eval_every=2_000,
+            log_every=1_000,
+        ),
+    )
+
+
+def _cpu() -> Config:
+    return Config(
+        agent=AgentConfig(
+            model_size="tiny",
+            latent_dim=64,
+            mlp_dim=128,
+            enc_dim=64,
+            num_q=2,
+            num_samples=64,
+            num_elites=8,
+            num_pi_trajs=8,
+            iterations=2,
+            batch_size=64,
+        ),
+        train=TrainConfig(
+            task="pendulum",
+            steps=30_000,
+            num_envs=8,
+            chunk_steps=50,
+            utd=0.25,
+            buffer_size=30_000,
+            eval_every=2_000,
+            eval_episodes=8,
+            log_every=2_000,
+        ),
+    )
+
+
+register_preset("default", Config, "the reference: TD-MPC2 5M + TDMPBC, HumanoidBench settings")
+register_preset(
+    "tdmpbc-paper", _tdmpbc_paper, "the paper's runs: default + the HB fork's v1 policy log-prob"
+)
+register_preset(
+    "smoke", _smoke, "CPU smoke run: tiny model, pendulum, 4 envs, 4k steps", fits_task=True
+)
+register_preset(
+    "cpu", _cpu, "CPU learning run: small model, pendulum, 8 envs, UTD 0.25", fits_task=True
+)
+
+__all__ = ["PRESETS", "Preset", "get_preset", "register_preset"]

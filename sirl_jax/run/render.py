@@ -1,0 +1,224 @@
+"""`render`: an mp4 of a policy, rolled out in MJX and drawn by CPU MuJoCo.
+
+The rollout (planner, policy prior, or uniform random actions) runs as one jitted `lax.scan`
+over N parallel episodes and returns the physics state of every step. Each state's qpos and
+qvel are copied into a `mujoco.MjData` of the env's own scene model (`Env.mj_model`, obstacles
+included), forwarded, and drawn by `mujoco.Renderer` from a camera tracking the pelvis (or the
+first body). Frames go to imageio's ffmpeg writer at the control rate (50 fps for the H1
+tasks), episode after episode, with the step and the return so far drawn on each.
+
+Headless OpenGL is chosen before MuJoCo is imported (`select_gl`): EGL where an NVIDIA GPU is
+visible, OSMesa otherwise, unless MUJOCO_GL is set. A missing library is a one-line error naming
+the system package.
+"""
+
+from __future__ import annotations
+
+import ctypes.util
+import os
+import warnings
+from pathlib import Path
+from typing import Any
+
+from sirl_jax.run.errors import UsageError
+
+_GL_LIBS = {
+    "osmesa": ("OSMesa", "libosmesa6"),
+    "egl": ("EGL", "libegl1 (with libgl1-mesa-dri, or the NVIDIA driver's EGL)"),
+}
+
+
+def select_gl(environ: dict | None = None) -> str:
+    """Sets MUJOCO_GL and PYOPENGL_PLATFORM for headless rendering; returns the backend.
+
+    Must run before `mujoco` is first imported (MuJoCo reads MUJOCO_GL at import). A value the
+    user set is kept. Raises UsageError when the backend's library is not installed.
+    """
+    env = os.environ if environ is None else environ
+    backend = env.get("MUJOCO_GL") or ("egl" if os.path.exists("/dev/nvidia0") else "osmesa")
+    if backend in _GL_LIBS:
+        lib, package = _GL_LIBS[backend]
+        if ctypes.util.find_library(lib) is None:
+            raise UsageError(
+                f"headless rendering with MUJOCO_GL={backend} needs lib{lib}, which is not "
+                f"installed: install the system package {package} (Debian/Ubuntu: apt-get "
+                f"install {package.split()[0]}), or set MUJOCO_GL to a backend you have"
+            )
+    env.setdefault("MUJOCO_GL", backend)
+    env.setdefault("PYOPENGL_PLATFORM", backend)
+    return backend
+
+
+def rollout_states(env, act, aux0, num_episodes: int, key, steps: int):
+    """Runs N episodes for `steps` control steps under `act(env_state, aux, key)`.
+
+    Returns (physics [steps, N, ...] of the state each step starts from, reward [steps, N],
+    done [steps, N]) as device arrays; jit the call.
+    """
+    import jax
+
+    from sirl_jax.envs.base import VecEnv
+
+    vec = VecEnv(env, num_episodes)
+    key_reset, key_run = jax.random.split(key)
+
+    def body(carry, k):
+        state, aux = carry
+        action, aux = act(state, aux, k)
+        nxt = vec.step(state, action)
+        return (nxt, aux), (env.mjx_data(state.physics), nxt.reward,
+                            nxt.terminated | nxt.truncated)  # fmt: skip
+
+    _, out = jax.lax.scan(body, (vec.reset(key_reset), aux0), jax.random.split(key_run, steps))
+    return out
+
+
+def copy_state(model, data, qpos, qvel, mocap_pos=None, mocap_quat=None) -> None:
+    """Writes one MJX state into a CPU `MjData` and runs `mj_forward` (positions for drawing)."""
+    import mujoco
+
+    data.qpos[:] = qpos
+    data.qvel[:] = qvel
+    if mocap_pos is not None and model.nmocap:
+        data.mocap_pos[:] = mocap_pos
+        data.mocap_quat[:] = mocap_quat
+    mujoco.mj_forward(model, data)
+
+
+def _camera(model):
+    import mujoco
+
+    cam = mujoco.MjvCamera()
+    pelvis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
+    cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+    cam.trackbodyid = pelvis if pelvis >= 0 else min(1, model.nbody - 1)
+    cam.distance = 4.0 if pelvis >= 0 else 2.5
+    cam.elevation = -15.0
+    cam.azimuth = 135.0
+    return cam
+
+
+def _caption(frame, text: str):
+    from PIL import Image, ImageDraw
+
+    image = Image.fromarray(frame)
+    draw = ImageDraw.Draw(image)
+    draw.rectangle((0, 0, 8 + 7 * len(text), 18), fill=(0, 0, 0))
+    draw.text((4, 3), text, fill=(255, 255, 255))
+    return image
+
+
+def write_video(env, physics, reward, done, out: Path, fps: int, width: int, height: int,
+                title: str) -> dict[str, Any]:  # fmt: skip
+    """Draws every episode's frames (up to its first end) into `out`; returns a summary."""
+    import imageio.v2 as imageio
+    import mujoco
+    import numpy as np
+
+    model = env.mj_model
+    data = mujoco.MjData(model)
+    qpos, qvel = np.asarray(physics.qpos), np.asarray(physics.qvel)
+    mocap = None
+    if model.nmocap:
+        mocap = (np.asarray(physics.mocap_pos), np.asarray(physics.mocap_quat))
+    reward, done = np.asarray(reward), np.asarray(done)
+    steps, episodes = reward.shape
+    renderer = mujoco.Renderer(model, height, width)
+    camera = _camera(model)
+    frames, returns = 0, []
+    # imageio starts ffmpeg with fork+exec; JAX warns about any fork, harmlessly here.
+    warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called", category=RuntimeWarning)
+    try:
+        with imageio.get_writer(out, fps=fps, codec="libx264", quality=7,
+                                macro_block_size=1) as writer:  # fmt: skip
+            for ep in range(episodes):
+                ended = np.flatnonzero(done[:, ep])
+                length = int(ended[0]) + 1 if ended.size else steps
+                total = 0.0
+                for t in range(length):
+                    extra = (mocap[0][t, ep], mocap[1][t, ep]) if mocap else ()
+                    copy_state(model, data, qpos[t, ep], qvel[t, ep], *extra)
+                    renderer.update_scene(data, camera)
+                    text = (f"{title}  episode {ep + 1}/{episodes}  step {t}  "
+                            f"return {total:.1f}")  # fmt: skip
+                    writer.append_data(np.asarray(_caption(renderer.render(), text)))
+                    total += float(reward[t, ep])
+                    frames += 1
+                returns.append(total)
+    finally:
+        renderer.close()
+    return {"frames": frames, "returns": returns, "out": str(out)}
+
+
+def render_command(args, backend: str) -> None:
+    """`render` from parsed `cli.RenderArgs` (after `select_gl`); prints what it wrote."""
+    from sirl_jax.run.compile_cache import enable_compilation_cache
+
+    enable_compilation_cache()
+    summary = render(
+        Path(args.run) if args.run else None, task=args.task, step=args.step,
+        episodes=args.episodes, policy="random" if args.random else args.policy,
+        out=Path(args.out) if args.out else None, max_steps=args.max_steps, width=args.width,
+        height=args.height)  # fmt: skip
+    returns = ", ".join(f"{r:.1f}" for r in summary["returns"])
+    print(f"wrote {summary['out']}: {summary['frames']} frames ({args.width}x{args.height}, "
+          f"MUJOCO_GL={backend}), episode returns {returns}")  # fmt: skip
+
+
+def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes: int,
+           policy: str, out: Path | None, max_steps: int | None, width: int, height: int,
+           seed: int = 0) -> dict[str, Any]:  # fmt: skip
+    """The body of `render` (call `select_gl` first)."""
+    import jax
+
+    from sirl_jax.run import runlog
+    from sirl_jax.run.checkpoint import Checkpointer
+    from sirl_jax.run.runner import build, eval_key, load_task
+    from sirl_jax.run.states import restore_state
+
+    if policy not in ("planner", "prior", "random"):
+        raise UsageError(f"--policy {policy!r} is invalid; allowed: planner, prior (or --random)")
+    if episodes < 1:
+        raise UsageError(f"--episodes={episodes} is invalid; allowed: an int >= 1")
+    if run_dir is None:
+        if policy != "random" or task is None:
+            raise UsageError("give a RUN_DIR, or --random with --task NAME")
+        spec, env = load_task(task)
+        agent, agent_state = None, None
+    else:
+        if not run_dir.is_dir():
+            raise UsageError(f"run directory {run_dir} does not exist")
+        config = runlog.load_config(run_dir)
+        spec, train = build(config)
+        env, agent = train.env, train.agent
+        ckpt = Checkpointer(run_dir / "checkpoints")
+        try:
+            state, step = restore_state(ckpt, train.init, jax.random.PRNGKey(config.train.seed),
+                                        step)  # fmt: skip
+        finally:
+            ckpt.close()
+        agent_state, seed = state.agent, config.train.seed
+    if env.mj_model is None:
+        raise UsageError(f"task {spec.id} has no MuJoCo model to render")
+    steps = min(env.episode_length, max_steps or env.episode_length)
+    if policy == "random":
+        def act(s, aux, k):
+            return jax.random.uniform(k, (episodes, env.action_size), minval=-1.0,
+                                      maxval=1.0), aux  # fmt: skip
+        aux0 = None
+    elif policy == "planner":
+        def act(s, aux, k):
+            return agent.plan(agent_state, aux, s.obs, s.first, k, True)
+        aux0 = agent.init_planner(episodes)
+    else:
+        def act(s, aux, k):
+            return agent.act_policy(agent_state, s.obs, k, True), aux
+        aux0 = None
+    key = eval_key(seed, step or 0)
+    physics, reward, done = jax.device_get(jax.jit(
+        lambda k: rollout_states(env, act, aux0, episodes, k, steps))(key))  # fmt: skip
+    name = spec.id if run_dir is None else f"{run_dir.name}-{step}"
+    out = out or Path(f"{name}-{policy}.mp4")
+    fps = max(1, round(1.0 / env.control_dt))
+    return write_video(env, physics, reward, done, out, fps, width, height,
+                       f"{spec.id} {policy}")  # fmt: skip

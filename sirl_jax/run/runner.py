@@ -1,0 +1,299 @@
+"""The run loop behind `train` and `eval`: chunks, evaluation and checkpoint cadence, failures.
+
+`train_run` validates, prepares the run directory, initialises or restores the train state and
+calls the jitted `Train.step` until `train.steps`, a Ctrl-C or a failure. Everything here runs
+on the host at chunk boundaries; only `Train.step`, `Train.evaluate` and the state copy run
+under `jit`. No error path deletes or overwrites anything already saved.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from sirl_jax.config import Config, config_to_dict
+from sirl_jax.envs import load
+from sirl_jax.run import progress as prog
+from sirl_jax.run import runlog
+from sirl_jax.run.checkpoint import Checkpointer
+from sirl_jax.run.errors import TrainingFailure, UsageError
+from sirl_jax.run.states import commit, copy_state, restore_state, save_state
+from sirl_jax.train import Train, make_train
+
+_EVAL_STREAM = 0x6576616C  # folded into the seed so evaluation keys never meet training keys
+
+
+# ---------------------------------------------------------------- building blocks
+
+
+def load_task(task: str):
+    """(TaskSpec, Env) of a task name, with bad names and missing extras as UsageError."""
+    try:
+        return load(task)
+    except KeyError as e:
+        raise UsageError(e.args[0]) from e
+    except ImportError as e:
+        raise UsageError(f"--task {task} needs an optional package: {e}") from e
+
+
+def build(config: Config) -> tuple[Any, Train]:
+    """(spec, Train) of a config; a config that does not fit its task is a UsageError."""
+    spec, env = load_task(config.train.task)
+    try:
+        return spec, make_train(config, env)
+    except ValueError as e:
+        raise UsageError(str(e)) from e
+
+
+def eval_key(seed: int, env_steps: int) -> jax.Array:
+    """The evaluation key of a run at `env_steps` (the same for `train` and `eval`)."""
+    base = jax.random.fold_in(jax.random.PRNGKey(seed), _EVAL_STREAM)
+    return jax.random.fold_in(base, env_steps)
+
+
+def _oom_failure(config: Config, error: Exception, where: str) -> TrainingFailure:
+    t, a = config.train, config.agent
+    first = str(error).strip().splitlines()[0][:200]
+    return TrainingFailure(
+        f"out of device memory {where} ({first}); reduce --buffer-size (now {t.buffer_size:,}), "
+        f"--num-envs ({t.num_envs}), --chunk-steps ({t.chunk_steps}), --agent.batch-size "
+        f"({a.batch_size}), --agent.num-samples ({a.num_samples}) or --model-size "
+        f"({a.model_size}), or pass --no-guard"
+    )
+
+
+@contextlib.contextmanager
+def _oom_as_failure(config: Config, where: str):
+    try:
+        yield
+    except jax.errors.JaxRuntimeError as e:
+        if "RESOURCE_EXHAUSTED" in str(e):
+            raise _oom_failure(config, e, where) from e
+        raise
+
+
+def cost_line(train: Train, state: Any) -> str:
+    """Times one `Train.act` (planning) and one `Train.update` of this run and says what the
+    rest of the run's agent compute costs (env physics excluded).
+
+    Compiling both takes seconds; for the reference config on a CPU the answer is days, worth
+    having before the first chunk.
+    """
+    key = jax.random.PRNGKey(0)
+    t = train.config.train
+
+    def seconds(fn, *args) -> float:
+        jax.block_until_ready(fn(*args))  # compile and warm up
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        return time.perf_counter() - t0
+
+    t_act = seconds(jax.jit(train.act), state.replace(planning=jnp.ones((), bool)), key)
+    t_update = seconds(jax.jit(train.update), state.agent, state.buffer, key)
+    done, planning = (int(x) for x in jax.device_get((state.env_steps, state.planning)))
+    remaining = max(t.steps - done, 0)
+    cost = prog.run_cost_seconds(
+        remaining,
+        seed_steps_left=0 if planning else max(train.seed_steps - done, 0),
+        num_envs=t.num_envs,
+        utd=t.utd,
+        pretrain_updates_left=0 if planning else train.pretrain_updates,
+        act_seconds=t_act,
+        update_seconds=t_update,
+    )
+    what = "plan" if train.config.agent.mpc else "policy"
+    return (
+        f"{jax.default_backend().upper()}: about {prog.format_duration(cost)} of agent compute "
+        f"for the {remaining:,} steps left (one {what} call for {t.num_envs} env(s) "
+        f"{t_act:.2f} s, one update {t_update:.2f} s, measured now)"
+    )
+
+
+# ---------------------------------------------------------------- the loop
+
+
+@dataclasses.dataclass
+class Run:
+    """What the loop needs besides the state; `saved` is the newest checkpointed env step."""
+
+    config: Config
+    train: Train
+    ckpt: Checkpointer
+    log: runlog.RunLog
+    bar: prog.Progress
+    guard: bool = True
+    saved: int | None = None
+    best: tuple[float, int] = (-math.inf, 0)  # best eval return so far and its env step
+    collapse: str | None = None  # the first collapse warning, repeated in the final summary
+
+    def evaluate(self, eval_fn, state, env_steps: int) -> dict[str, float]:
+        key = eval_key(self.config.train.seed, env_steps)
+        metrics = prog.host_scalars(jax.device_get(eval_fn(state, key)))
+        self.log.log("eval", env_steps, metrics)
+        self.bar.write(f"eval @ {env_steps:,}: "
+                       + ", ".join(f"{k} {v:.4g}" for k, v in metrics.items()))  # fmt: skip
+        which = "planner" if self.config.agent.mpc else "policy"
+        value = metrics[f"eval/{which}_return"]
+        if self.best[0] > 0 and value < 0.5 * self.best[0] and self.collapse is None:
+            self.collapse = (f"warning: eval {which} return collapsed to {value:.4g} at env step "
+                             f"{env_steps:,}, below half its best {self.best[0]:.4g} (env step "
+                             f"{self.best[1]:,})")  # fmt: skip
+            self.bar.write(self.collapse)
+        if value > self.best[0]:
+            self.best = (value, env_steps)
+        return metrics
+
+    def nonfinite_failure(self, backup, reached: int, bad: list[str]) -> TrainingFailure:
+        where = f"non-finite values in the chunk ending at env step {reached:,}: {', '.join(bad)}"
+        if backup is not None:
+            good = save_state(self.ckpt, backup, self.config.train.save_buffer)
+            return TrainingFailure(f"{where}; the last good state (env step {good:,}) is "
+                                   f"saved in {self.ckpt.directory} with the earlier "
+                                   "checkpoints")  # fmt: skip
+        return TrainingFailure(f"{where}; the state was not saved (--no-guard); the last "
+                               f"checkpoint is env step {self.saved}")  # fmt: skip
+
+    def loop(self, state) -> None:
+        """Runs chunks until train.steps, a Ctrl-C or a failure; checkpoints the final state."""
+        t = self.config.train
+        step_fn = jax.jit(self.train.step, donate_argnums=0)
+        backup_fn = jax.jit(copy_state) if self.guard else (lambda s: None)
+        eval_fn = jax.jit(self.train.evaluate)
+        env_steps, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
+        mean = prog.MetricMean()
+        with prog.StopOnSigint() as stop, contextlib.closing(self.bar):
+            while env_steps < t.steps and not stop.requested:
+                before = env_steps
+                with _oom_as_failure(self.config, f"at env step {before:,} (last checkpoint: "
+                                                  f"{self.saved})"):  # fmt: skip
+                    backup = backup_fn(state)
+                    state, metrics = step_fn(state)
+                    metrics = prog.host_scalars(jax.device_get(metrics))
+                env_steps, updates = int(metrics["env_steps"]), int(metrics["updates"])
+                bad = prog.failures(metrics)
+                if bad:
+                    self.log.log("metrics", env_steps, metrics)
+                    raise self.nonfinite_failure(backup, env_steps, bad)
+                self.bar.update(env_steps, updates, metrics)
+                mean.add(metrics)
+                if prog.crossed(before, env_steps, t.log_every) or env_steps >= t.steps:
+                    self.log.log("metrics", env_steps, mean.pop())
+                if prog.crossed(before, env_steps, t.eval_every):
+                    self.evaluate(eval_fn, state, env_steps)
+                if prog.crossed(before, env_steps, t.checkpoint_interval):
+                    self.saved = save_state(self.ckpt, state, t.save_buffer)
+        if stop.requested and env_steps < t.steps and mean.pending():
+            self.log.log("metrics", env_steps, mean.pop())
+        self.saved = save_state(self.ckpt, state, t.save_buffer)
+        if self.collapse is not None:
+            print(self.collapse)
+        how = "stopped (Ctrl-C/SIGTERM)" if env_steps < t.steps else "done"
+        print(f"{how} at env step {env_steps:,}; checkpoint saved in {self.ckpt.directory}"
+              + (f"; continue with: python -m sirl_jax train --resume {self.log.run_dir}"
+                 if env_steps < t.steps else ""))  # fmt: skip
+
+
+def check_resume_step(ckpt: Checkpointer, step: int | None) -> None:
+    later = [s for s in ckpt.steps() if step is not None and s > step]
+    if later:
+        raise UsageError(
+            f"--resume-step {step}: later checkpoints {later} exist and would mix with the new "
+            "ones; move them out of checkpoints/ first (nothing was changed)"
+        )
+
+
+def train_command(args, derived: dict) -> None:
+    """`train` from parsed `cli.TrainArgs`: the run dir, the wandb extra, then `train_run`."""
+    from sirl_jax.run.compile_cache import enable_compilation_cache
+
+    config, resuming = args.config, args.resume is not None
+    if resuming:
+        run_dir = Path(args.resume)
+    else:
+        run_dir = Path(args.run_dir or runlog.default_run_dir(config.train.task, config.train.seed))
+        runlog.check_new_run_dir(run_dir)
+    wandb_run_factory = None
+    if args.wandb:
+        try:
+            import wandb
+        except ImportError as e:
+            raise UsageError("--wandb needs the wandb package: pip install wandb") from e
+
+        def wandb_run_factory(d: Path):
+            return wandb.init(project=args.wandb_project, name=d.name, dir=str(d), id=d.name,
+                              resume="allow", config=config_to_dict(config))  # fmt: skip
+
+    enable_compilation_cache()
+    train_run(config, run_dir, resume_step=args.resume_step, resuming=resuming, derived=derived,
+              keep=args.keep, guard=args.guard, show_progress=args.progress,
+              tensorboard=args.tensorboard, wandb_run_factory=wandb_run_factory)  # fmt: skip
+
+
+def print_tasks() -> None:
+    """One line per registered task: id, aliases, T, success bar, description."""
+    from sirl_jax.envs import TASKS
+
+    aliases: dict[str, list[str]] = {}
+    for alias, target in TASKS.aliases().items():
+        aliases.setdefault(target, []).append(alias)
+    print(f"{'task':<26} {'aliases':<18} {'T':>5} {'success':>8}  description")
+    for name in sorted(TASKS):
+        spec = TASKS[name]
+        bar = "-" if spec.success_bar is None else f"{spec.success_bar:g}"
+        alias = ",".join(sorted(aliases.get(name, []))) or "-"
+        print(f"{name:<26} {alias:<18} {spec.episode_length:>5} {bar:>8}  {spec.description}")
+    print("also: --task dmc:<EnvName> / playground:<EnvName> for a MuJoCo Playground env")
+
+
+def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
+              resuming: bool = False, derived: dict | None = None, keep: int = 3,
+              guard: bool = True, show_progress: bool = True, tensorboard: bool = True,
+              wandb_run_factory=None) -> None:  # fmt: skip
+    """The body of `train`: build, restore or init, log the run's facts, run the loop."""
+    from sirl_jax.run.buffer_memory import check_buffer_fits
+
+    spec, train = build(config)
+    print(runlog.describe_run(config, spec, train.buffer.describe(), run_dir,
+                              train.agent.iterations, derived))  # fmt: skip
+    on_cpu = jax.default_backend() == "cpu"
+    probe_cost = on_cpu and config.agent.model_size != "tiny"
+    if probe_cost:
+        print(f"CPU only: a {config.agent.model_size} model is GPU-sized; timing one plan and "
+              "one update to estimate the cost...", flush=True)  # fmt: skip
+    check_buffer_fits(train.buffer.nbytes)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    key = jax.random.PRNGKey(config.train.seed)
+    ckpt = Checkpointer(run_dir / "checkpoints", max_to_keep=keep)
+    try:
+        saved = None
+        with _oom_as_failure(config, "while allocating the train state"):
+            # restore before writing anything, so a bad checkpoint changes nothing
+            if resuming:
+                check_resume_step(ckpt, resume_step)
+                state, saved = restore_state(ckpt, train.init, key, resume_step)
+                print(f"resumed from env step {saved:,}")
+            else:
+                state = commit(jax.jit(train.init)(key))
+        runlog.write_json(run_dir / "config.json", config_to_dict(config))
+        runlog.record_versions(run_dir)
+        wandb_run = wandb_run_factory(run_dir) if wandb_run_factory else None
+        log = runlog.RunLog(run_dir, tensorboard=tensorboard, wandb_run=wandb_run)
+        try:
+            if saved is not None:
+                log.drop_after(saved)
+            if probe_cost:
+                print(cost_line(train, state) + "; use --preset smoke or a GPU", flush=True)
+            bar = prog.Progress(config.train.steps, int(jax.device_get(state.env_steps)),
+                                enabled=show_progress)  # fmt: skip
+            Run(config, train, ckpt, log, bar, guard, saved).loop(state)
+        finally:
+            log.close()
+    finally:
+        ckpt.close()

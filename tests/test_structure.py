@@ -1,0 +1,57 @@
+"""Where decisions live: the core never imports the shell, and task names load in one place."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from sirl_jax.envs import TASKS, load, spec
+
+CORE = ("sirl_jax.agent", "sirl_jax.envs", "sirl_jax.buffer", "sirl_jax.train",
+        "sirl_jax.evaluate", "sirl_jax.config", "sirl_jax.presets", "sirl_jax.types")  # fmt: skip
+
+
+@pytest.mark.timeout(120)
+def test_core_modules_import_no_shell_module():
+    code = (
+        "import sys\n"
+        + "".join(f"import {m}\n" for m in CORE)
+        + "shell = sorted(m for m in sys.modules if m.startswith('sirl_jax.run'))\n"
+        + "print(','.join(shell))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=100, check=True)  # fmt: skip
+    assert out.stdout.strip() == "", f"core imported shell modules: {out.stdout.strip()}"
+
+
+def test_spec_resolves_ids_and_aliases_without_building():
+    assert spec("hurdle").id == "h1hand-hurdle-v0"
+    assert spec("h1-walk-v0").id == "h1-walk-v0"
+    assert spec("pendulum").id == TASKS["pendulum-swingup-v0"].id
+
+
+@pytest.mark.timeout(120)
+def test_load_agrees_with_the_env_after_an_override():
+    s, env = load("pendulum", episode_length=60)
+    assert s.id == "pendulum-swingup-v0" and env.episode_length == 60 == s.episode_length
+    assert s.success_bar == env.success_bar == TASKS["pendulum"].success_bar
+    assert TASKS["pendulum"].episode_length == 250  # the registry's default is untouched
+
+
+def test_unknown_names_and_prefixes_are_clear_errors():
+    with pytest.raises(KeyError, match="unknown task 'no-such-task'; valid tasks: .*hurdle"):
+        load("no-such-task")
+    with pytest.raises(KeyError, match="unknown task prefix 'gym:'.*allowed prefixes: dmc:, "
+                                       "playground:"):  # fmt: skip
+        load("gym:Hopper-v4")
+
+
+@pytest.mark.timeout(300)
+@pytest.mark.parametrize("name", ["dmc:CartpoleSwingup", "playground:CartpoleBalance"])
+def test_playground_prefixes_load_real_envs(name):
+    pytest.importorskip("mujoco_playground")
+    s, env = load(name)
+    assert s.id == name and s.episode_length == env.episode_length == 1000
+    assert env.observation_size >= 4 and env.action_size == 1
