@@ -197,7 +197,7 @@ def _base_config(argv: list[str]) -> tuple[Config, str, dict]:
         return base, preset or "default", {}
     from sirl_jax.run.runner import load_task
 
-    spec, _ = load_task(base.train.task)
+    spec, _ = load_task(base.train.task, build_env=False)
     fitted, derived = fit_to_task(base, spec.episode_length)
     return fitted, preset, derived
 

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 
 from sirl_jax.config import Config, config_to_dict
 from sirl_jax.envs import load
+from sirl_jax.envs import spec as registered_spec
 from sirl_jax.run import progress as prog
 from sirl_jax.run import runlog
 from sirl_jax.run.checkpoint import Checkpointer
@@ -33,10 +34,11 @@ _EVAL_STREAM = 0x6576616C  # folded into the seed so evaluation keys never meet 
 # ---------------------------------------------------------------- building blocks
 
 
-def load_task(task: str):
-    """(TaskSpec, Env) of a task name, with bad names and missing extras as UsageError."""
+def load_task(task: str, build_env: bool = True):
+    """(TaskSpec, Env) of a task name, with bad names and missing extras as UsageError;
+    `build_env=False`: the registered spec alone, (spec, None), nothing compiled."""
     try:
-        return load(task)
+        return load(task) if build_env else (registered_spec(task), None)
     except KeyError as e:
         raise UsageError(e.args[0]) from e
     except ImportError as e:
