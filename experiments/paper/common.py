@@ -147,8 +147,10 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
         train_csv.drop_after(done)
         eval_csv.drop_after(done)
         print(f"{label}: resumed from env step {done:,} per seed", flush=True)
-    else:
+    else:  # a fresh start: rows of an earlier timing probe or a run that died go
         state, done = commit(jax.jit(init)(keys)), 0
+        train_csv.drop_after(-1)
+        eval_csv.drop_after(-1)
 
     def run_eval(state, env_steps: int, wall: float) -> None:
         ev = jax.device_get(evaluate(state, jax.vmap(jax.random.fold_in, (0, None))(
