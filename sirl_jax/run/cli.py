@@ -334,10 +334,9 @@ def main(argv: list[str] | None = None) -> int:
 def run() -> None:
     """Process entry point (`python -m sirl_jax`, `sirl-jax`): exits with `main`'s code.
 
-    After a second Ctrl-C the process leaves at once (`os._exit`): a normal interpreter exit
-    would wait for the XLA computation still running the interrupted chunk (on CPU, a chunk
-    with the pretraining updates takes half an hour). Checkpoints are written to a temporary
-    directory and renamed when complete, so nothing saved is lost by not waiting.
+    After a second Ctrl-C the process leaves at once (`os._exit`) instead of waiting for the
+    XLA computation of the interrupted chunk; checkpoints are renamed into place only when
+    complete, so nothing saved is lost by not waiting.
     """
     code = main()
     if code == EXIT_ABORTED:
