@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 import tyro
 
-from experiments.paper.common import CsvRows, run_arm, scale_config, write_summary
+from experiments.paper.common import run_arm, scale_config, write_summary
+from sirl_jax.run.runlog import CsvLog
 
 ARMS = {"tdmpc2": 0.0, "tdmpbc": 1.0}
 OUT = Path("docs/results/humanoid_study")
@@ -43,7 +44,7 @@ class Args:
 
 
 def _rows(path: Path) -> list[dict]:
-    return CsvRows(path, []).rows()
+    return CsvLog(path).rows()
 
 
 def random_return(task: str, episodes: int = 64) -> tuple[float, float]:

@@ -17,11 +17,12 @@ from pathlib import Path
 import numpy as np
 import tyro
 
-from experiments.paper.common import CsvRows, run_arm
+from experiments.paper.common import run_arm
 from sirl_jax.config import fit_to_task
 from sirl_jax.envs import spec
 from sirl_jax.presets import get_preset
 from sirl_jax.run.plot import find_collapse
+from sirl_jax.run.runlog import CsvLog
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,7 +40,7 @@ def main(args: Args) -> None:
                                spec(args.task).episode_length)  # fmt: skip
     out = Path("results/robustness") / f"{args.preset}-{args.task.replace(':', '_')}"
     run_arm(cfg, args.seeds, out, f"{args.preset} {args.task}")
-    rows = CsvRows(out / "eval.csv", []).rows()
+    rows = CsvLog(out / "eval.csv").rows()
     for s in range(args.seeds):
         mine = sorted((int(r["env_steps"]), float(r["planner_return"]))
                       for r in rows if int(r["seed"]) == s)  # fmt: skip

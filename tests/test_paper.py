@@ -8,8 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from experiments.paper.common import CsvRows, final_returns, run_arm, scale_config
+from experiments.paper.common import final_returns, run_arm, scale_config
 from sirl_jax.presets import get_preset
+from sirl_jax.run.runlog import CsvLog
 
 
 def test_scale_configs():
@@ -34,10 +35,10 @@ def test_run_arm_writes_resumes_and_finishes_once(tmp_path):
     assert not (out / "done.json").exists() and first["env_steps"] == 150
     summary = run_arm(cfg, 2, out, "test")
     assert json.loads((out / "done.json").read_text()) == summary
-    rows = CsvRows(out / "eval.csv", []).rows()
+    rows = CsvLog(out / "eval.csv").rows()
     assert sorted({int(r["env_steps"]) for r in rows}) == [0, 300, 600]
     assert sorted({int(r["seed"]) for r in rows}) == [0, 1]
-    train_rows = CsvRows(out / "train.csv", []).rows()
+    train_rows = CsvLog(out / "train.csv").rows()
     assert [int(r["env_steps"]) for r in train_rows if r["seed"] == "0"] == list(
         range(50, 601, 50))  # the probe's rows were replaced, not repeated
     final = final_returns(out)

@@ -27,6 +27,7 @@ from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import load
 from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.compile_cache import enable_compilation_cache
+from sirl_jax.run.runlog import CsvLog
 from sirl_jax.run.states import commit
 from sirl_jax.train import make_train
 
@@ -48,6 +49,8 @@ PAPER_TABLE = {
     "slide": (700, (926.26, 2.17), (141.3, 19.09)),
     "pole": (700, (958.58, 1.11), (207.46, 43.65)),
 }
+ARMS = {"TDMPBC": 1.0, "TD-MPC2": 0.0}
+"""The paper's two arms by their beta: TDMPBC and plain TD-MPC2."""
 # The paper's runtime table: hours for 2M steps of 3 seeds on one V100.
 PAPER_HOURS = {"walk": (37.71, 35.23), "reach": (37.73, 36.46), "hurdle": (36.61, 35.34)}
 
@@ -80,33 +83,6 @@ def scale_config(scale: str, task: str, beta: float = 1.0, g_source: str = "rmax
     )  # fmt: skip
 
 
-class CsvRows:
-    """Appends rows to a CSV; `drop_after(step)` keeps rows with env_steps <= step."""
-
-    def __init__(self, path: Path, fields: list[str]):
-        self.path, self.fields = path, fields
-        if not path.exists():
-            with open(path, "w", newline="") as f:
-                csv.DictWriter(f, fieldnames=fields).writeheader()
-
-    def rows(self) -> list[dict]:
-        with open(self.path, newline="") as f:
-            return list(csv.DictReader(f))
-
-    def drop_after(self, step: int) -> None:
-        rows = [r for r in self.rows() if int(r["env_steps"]) <= step]
-        tmp = self.path.with_suffix(".tmp")
-        with open(tmp, "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=self.fields)
-            writer.writeheader()
-            writer.writerows(rows)
-        tmp.replace(self.path)
-
-    def append(self, rows: list[dict]) -> None:
-        with open(self.path, "a", newline="") as f:
-            csv.DictWriter(f, fieldnames=self.fields).writerows(rows)
-
-
 def _finite(x: float, digits: int = 3):
     return round(float(x), digits) if math.isfinite(float(x)) else ""
 
@@ -133,11 +109,7 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
     step = jax.jit(jax.vmap(train.step), donate_argnums=0)
     evaluate = jax.jit(jax.vmap(train.evaluate))
     eval_keys = jax.vmap(lambda k: jax.random.fold_in(k, 0x6576616C))(keys)
-    train_csv = CsvRows(out / "train.csv", ["seed", "env_steps", "wall_s", "episode_return",
-                                            "episode_length", "r_max", "updates"])  # fmt: skip
-    eval_csv = CsvRows(out / "eval.csv", ["seed", "env_steps", "wall_s", "planner_return",
-                                          "planner_length", "policy_return", "policy_length",
-                                          "r_max"])  # fmt: skip
+    train_csv, eval_csv = CsvLog(out / "train.csv"), CsvLog(out / "eval.csv")
     ckpt = Checkpointer(out / "checkpoints", max_to_keep=2)
     start, wall0 = time.perf_counter(), 0.0
     if ckpt.latest_step() is not None:
@@ -155,7 +127,7 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
     def run_eval(state, env_steps: int, wall: float) -> None:
         ev = jax.device_get(evaluate(state, jax.vmap(jax.random.fold_in, (0, None))(
             eval_keys, env_steps)))  # fmt: skip
-        eval_csv.append([{
+        eval_csv.extend([{
             "seed": s, "env_steps": env_steps, "wall_s": round(wall, 1),
             "planner_return": _finite(ev["eval/planner_return"][s]),
             "planner_length": float(ev["eval/planner_length"][s]),
@@ -178,7 +150,7 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
         wall = wall0 + time.perf_counter() - start
         if bool(np.all(m["planning"] > 0)):
             timing.append((time.perf_counter(), done))
-        train_csv.append([{
+        train_csv.extend([{
             "seed": s, "env_steps": done, "wall_s": round(wall, 1),
             "episode_return": _finite(m["episode/return"][s]),
             "episode_length": _finite(m["episode/length"][s], 1),
@@ -204,7 +176,7 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
 
 def final_returns(out: Path) -> np.ndarray:
     """[S] planner return at the last evaluation of an arm."""
-    rows = CsvRows(out / "eval.csv", []).rows()
+    rows = CsvLog(out / "eval.csv").rows()
     last = max(int(r["env_steps"]) for r in rows)
     return np.array([float(r["planner_return"]) for r in rows if int(r["env_steps"]) == last])
 

@@ -19,14 +19,13 @@ from pathlib import Path
 import tyro
 
 from experiments.paper.common import (
+    ARMS,
     PAPER_HOURS,
     bar_plot,
     run_arm,
     scale_config,
     write_summary,
 )
-
-ARMS = {"TDMPBC": 1.0, "TD-MPC2": 0.0}
 
 
 @dataclasses.dataclass(frozen=True)

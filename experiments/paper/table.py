@@ -15,6 +15,7 @@ from pathlib import Path
 import tyro
 
 from experiments.paper.common import (
+    ARMS,
     PAPER_TABLE,
     bar_plot,
     final_returns,
@@ -23,8 +24,6 @@ from experiments.paper.common import (
     write_summary,
 )
 from sirl_jax.envs import spec
-
-ARMS = {"TDMPBC": 1.0, "TD-MPC2": 0.0}
 
 
 @dataclasses.dataclass(frozen=True)

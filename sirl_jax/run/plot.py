@@ -17,7 +17,6 @@ Panels:
 
 from __future__ import annotations
 
-import csv
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -28,6 +27,7 @@ import numpy as np
 from sirl_jax.config import flatten_config
 from sirl_jax.run import runlog
 from sirl_jax.run.errors import UsageError
+from sirl_jax.run.runlog import CsvLog
 
 
 @dataclass
@@ -46,13 +46,6 @@ class RunCurves:
     random_return: float = math.nan
 
 
-def _read_csv(path: Path) -> list[dict]:
-    if not path.is_file():
-        return []
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
-
-
 def _column(rows: list[dict], name: str) -> np.ndarray:
     return np.array([float(r[name]) if r.get(name) not in (None, "") else math.nan for r in rows])
 
@@ -62,7 +55,7 @@ def load_run(path: Path) -> RunCurves:
     if not path.is_dir():
         raise UsageError(f"run directory {path} does not exist")
     config = runlog.load_config(path)
-    rows = _read_csv(path / "eval" / "checkpoints.csv") or _read_csv(path / "eval.csv")
+    rows = CsvLog(path / "eval" / "checkpoints.csv").rows() or CsvLog(path / "eval.csv").rows()
     if not rows:
         raise UsageError(f"{path} has no evaluations yet (eval.csv, or run `eval {path}`)")
     key = "eval/planner_return" if "eval/planner_return" in rows[0] else "eval/policy_return"
@@ -70,8 +63,8 @@ def load_run(path: Path) -> RunCurves:
     order = np.argsort(steps, kind="stable")
     flat = flatten_config(config)
     flat.pop("train.seed")
-    metrics = _read_csv(path / "metrics.csv")
-    random_rows = _read_csv(path / "eval" / "random.csv")
+    metrics = CsvLog(path / "metrics.csv").rows()
+    random_rows = CsvLog(path / "eval" / "random.csv").rows()
     return RunCurves(
         path=path, task=config.train.task, seed=config.train.seed,
         group=tuple(sorted((k, repr(v)) for k, v in flat.items())),

@@ -127,7 +127,8 @@ class CsvLog:
             with open(path, newline="") as f:
                 self.header = next(csv.reader(f), [])
 
-    def _rows(self) -> list[dict]:
+    def rows(self) -> list[dict]:
+        """The rows as dicts of strings ([] when the file does not exist)."""
         if not self.path.exists():
             return []
         with open(self.path, newline="") as f:
@@ -145,13 +146,23 @@ class CsvLog:
         new = [k for k in row if k not in self.header]
         if new or not self.path.exists():
             self.header += new
-            self._rewrite([*self._rows(), row])
+            self._rewrite([*self.rows(), row])
             return
         with open(self.path, "a", newline="") as f:
             csv.DictWriter(f, self.header, restval="").writerow(row)
 
+    def extend(self, rows: list[Mapping[str, Any]]) -> None:
+        """Appends several rows (one rewrite at most, when they bring new keys)."""
+        new = [k for r in rows for k in r if k not in self.header]
+        if new or not self.path.exists():
+            self.header += list(dict.fromkeys(new))
+            self._rewrite([*self.rows(), *rows])
+            return
+        with open(self.path, "a", newline="") as f:
+            csv.DictWriter(f, self.header, restval="").writerows(rows)
+
     def drop_after(self, step: int) -> None:
-        rows = [r for r in self._rows() if float(r.get("env_steps") or 0) <= step]
+        rows = [r for r in self.rows() if float(r.get("env_steps") or 0) <= step]
         if self.header:
             self._rewrite(rows)
 
