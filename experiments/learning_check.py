@@ -110,7 +110,8 @@ def main(args: Args) -> None:
     for i in range(num_calls):
         state, metrics = step(state)
         metrics = jax.device_get(metrics)
-        if metrics["nonfinite_obs"] or metrics["nonfinite_loss"]:
+        too_many = metrics["env/blowups"] > tc.max_blowup_rate * tc.steps_per_call
+        if metrics["nonfinite_loss"] or too_many:
             raise FloatingPointError(f"non-finite values at chunk {i}: {metrics}")
         if metrics["episode/count"] > 0:
             returns.append(float(metrics["episode/return"]))

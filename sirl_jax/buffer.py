@@ -160,6 +160,7 @@ class Buffer:
     def add(
         self, state: BufferState, obs: jax.Array, action: jax.Array, reward: jax.Array,
         next_obs: jax.Array, terminated: jax.Array, truncated: jax.Array,
+        discard: jax.Array | None = None,
     ) -> BufferState:  # fmt: skip
         """Adds one transition per env.
 
@@ -171,6 +172,9 @@ class Buffer:
           next_obs: [E, O] s_{t+1} before any auto-reset (`EnvState.final_obs`).
           terminated: [E] bool, s_{t+1} is terminal.
           truncated: [E] bool, the time limit was hit at s_{t+1}.
+          discard: [E] bool or None: the env's transition is not written and its running
+            episode is dropped unrecorded (ring space reused, no R, not in R_max); the env's
+            next `add` starts a new episode. For a physics blow-up (`EnvState.blowup`).
 
         Returns:
           The updated buffer. The episode is recorded when terminated | truncated.
@@ -181,13 +185,15 @@ class Buffer:
         terminated = jnp.asarray(terminated, bool)
         truncated = jnp.asarray(truncated, bool)
         reward = jnp.asarray(reward, jnp.float32)
+        discard = jnp.zeros((e,), bool) if discard is None else jnp.asarray(discard, bool)
         fresh = state.cur_fresh
         cur_start = jnp.where(fresh, state.write_pos, state.cur_start)
-        # Row L is out of range: mode="drop" skips the reset entry unless the episode starts here.
-        first_row = jnp.where(fresh, state.write_pos % l, l)
+        # Row L is out of range: mode="drop" skips the reset entry unless the episode starts
+        # here, and both entries of a discarded transition.
+        first_row = jnp.where(fresh & ~discard, state.write_pos % l, l)
         step_pos = state.write_pos + fresh.astype(jnp.int32)
         envs2 = jnp.concatenate([env, env])
-        rows2 = jnp.concatenate([first_row, step_pos % l])
+        rows2 = jnp.concatenate([first_row, jnp.where(discard, l, step_pos % l)])
 
         def write(buf, first, step):
             return buf.at[envs2, rows2].set(jnp.concatenate([first, step]), mode="drop")
@@ -196,12 +202,13 @@ class Buffer:
         new_pos = step_pos + 1
         discount_k = jnp.where(fresh, 1.0, state.cur_discount)
         cur_return = jnp.where(fresh, 0.0, state.cur_return) + discount_k * reward
-        done = terminated | truncated
+        done = (terminated | truncated) & ~discard
         length = new_pos - cur_start
 
         # Evict the oldest recorded episode once the ring has overwritten its entry 0.
         head_start = state.ep_start[env, state.ep_head % m]
-        evict = (state.ep_head < state.ep_tail) & (head_start < new_pos - l)
+        written_to = jnp.where(discard, state.write_pos, new_pos)  # a discard writes nothing
+        evict = (state.ep_head < state.ep_tail) & (head_start < written_to - l)
         ep_head = state.ep_head + evict.astype(jnp.int32)
 
         keep = done & (length >= h + 2) & (length <= l)
@@ -210,8 +217,9 @@ class Buffer:
         ep_length = state.ep_length.at[env, slot].set(length, mode="drop")
         ep_return = state.ep_return.at[env, slot].set(cur_return, mode="drop")
         ep_tail = state.ep_tail + keep.astype(jnp.int32)
-        # HumanoidBench drops episodes of <= H + 1 entries: reuse their ring space.
-        write_pos = jnp.where(done & (length < h + 2), cur_start, new_pos)
+        # HumanoidBench drops episodes of <= H + 1 entries: reuse their ring space, and that of
+        # a discarded episode.
+        write_pos = jnp.where((done & (length < h + 2)) | discard, cur_start, new_pos)
 
         new_best = jnp.max(jnp.where(keep, cur_return, -jnp.inf))
         r_max_all_time = jnp.maximum(state.r_max_all_time, new_best)
@@ -240,7 +248,7 @@ class Buffer:
             cur_start=cur_start,
             cur_return=cur_return,
             cur_discount=discount_k * self.discount,
-            cur_fresh=done,
+            cur_fresh=done | discard,
             r_max=r_max,
             r_max_all_time=r_max_all_time,
             episodes_recorded=state.episodes_recorded + jnp.sum(keep, dtype=jnp.int32),

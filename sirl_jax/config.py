@@ -64,6 +64,10 @@ class TrainConfig:
     """Save the replay buffer with checkpoints (resuming without it destabilises, tdmpc2#28)."""
     log_every: int = 10_000
     """Env steps between log lines; metrics are aggregated over the chunks in between."""
+    max_blowup_rate: float = 0.01
+    """A physics blow-up (non-finite qpos, qvel, observation or reward) resets that env and
+    drops its running episode; the run stops, with the last good state saved, only when a
+    chunk's blow-ups exceed this fraction of its env steps. 0: stop at the first one."""
 
     def __post_init__(self) -> None:
         _check(bool(self.task), "train.task", self.task, "a non-empty task name")
@@ -93,6 +97,12 @@ class TrainConfig:
             "None (= steps // 10) or an int >= 0",
         )
         _check(self.log_every >= 1, "train.log_every", self.log_every, "an int >= 1")
+        _check(
+            0.0 <= self.max_blowup_rate <= 1.0,
+            "train.max_blowup_rate",
+            self.max_blowup_rate,
+            "a float in [0, 1]",
+        )
 
     @property
     def steps_per_call(self) -> int:
@@ -168,7 +178,7 @@ class Config:
 
 RESUME_MUTABLE = frozenset(
     {"train.steps", "train.eval_every", "train.eval_episodes", "train.checkpoint_every",
-     "train.log_every", "train.save_buffer"}
+     "train.log_every", "train.save_buffer", "train.max_blowup_rate"}
 )  # fmt: skip
 """Config fields a resumed run may change; every other field must match the saved config."""
 

@@ -1,7 +1,9 @@
 """Evaluation episodes: the planner and the policy prior alone, both in eval mode.
 
 N episodes run in parallel on a fresh `VecEnv(env, N)` for exactly T steps under one
-`lax.scan`; the first episode of each env counts (a terminated one is not restarted). The
+`lax.scan`; the first episode of each env counts (a terminated one is not restarted). An
+episode whose physics blew up ends there with a NaN return: it is counted in
+`eval/<prefix>_blowups` and left out of the means (all of them NaN if every episode blew up). The
 returned R_max lets a shell plot the policy's return against the best return in the buffer
 (the TDMPBC paper's "training phenomenon" figure).
 
@@ -21,7 +23,8 @@ from sirl_jax.envs.base import Env, VecEnv
 def _rollout(env: Env, num_episodes: int, act: Callable, aux0, key: jax.Array):
     """The first episode of each of N fresh envs under `act(env_state, aux, key)`.
 
-    Returns [N] returns, [N] lengths and {term: [N] mean of the reward term over the episode}.
+    Returns [N] returns (NaN for a blown-up episode), [N] lengths and {term: [N] mean of the
+    reward term over the episode}.
     """
     vec = VecEnv(env, num_episodes)
     key_reset, key_run = jax.random.split(key)
@@ -35,9 +38,10 @@ def _rollout(env: Env, num_episodes: int, act: Callable, aux0, key: jax.Array):
         done = nxt.terminated | nxt.truncated
         new = done & ~ended
         ret = jnp.where(new, nxt.last_return, ret)
+        ret = jnp.where(nxt.blowup & ~ended, jnp.nan, ret)
         length = jnp.where(new, nxt.last_length.astype(jnp.float32), length)
         terms = {n: terms[n] + jnp.where(ended, 0.0, nxt.metrics[n]) for n in names}
-        return (nxt, aux, ended | done, ret, length, terms), None
+        return (nxt, aux, ended | done | nxt.blowup, ret, length, terms), None
 
     init = (vec.reset(key_reset), aux0, jnp.zeros_like(zeros, bool), zeros, zeros,
             {n: zeros for n in names})  # fmt: skip
@@ -47,13 +51,20 @@ def _rollout(env: Env, num_episodes: int, act: Callable, aux0, key: jax.Array):
 
 
 def _summary(prefix: str, bar: float | None, returns, lengths, terms) -> dict[str, jax.Array]:
-    success = jnp.mean(returns >= bar) if bar is not None else jnp.float32(jnp.nan)
+    intact = jnp.isfinite(returns)
+
+    def mean(x):
+        return jnp.sum(jnp.where(intact, x, 0.0)) / jnp.where(intact.any(), intact.sum(), jnp.nan)
+
+    avg = mean(returns)
+    success = mean(returns >= bar) if bar is not None else jnp.float32(jnp.nan)
     return {
-        f"eval/{prefix}_return": jnp.mean(returns),
-        f"eval/{prefix}_return_std": jnp.std(returns),
-        f"eval/{prefix}_length": jnp.mean(lengths),
+        f"eval/{prefix}_return": avg,
+        f"eval/{prefix}_return_std": jnp.sqrt(mean(jnp.square(returns - avg))),
+        f"eval/{prefix}_length": mean(lengths),
         f"eval/{prefix}_success": jnp.asarray(success, jnp.float32),
-        **{f"eval/{prefix}_term/{n}": jnp.mean(v) for n, v in terms.items()},
+        f"eval/{prefix}_blowups": jnp.sum(~intact, dtype=jnp.int32),
+        **{f"eval/{prefix}_term/{n}": mean(v) for n, v in terms.items()},
     }
 
 
@@ -84,9 +95,10 @@ def make_evaluate(env: Env, agent, num_episodes: int, buffer) -> Callable:
 
     Metrics ([] arrays): eval/{planner,policy}_{return,return_std,length,success}, with success
     the fraction of episodes whose return reaches the task's success bar (NaN without one);
-    eval/{planner,policy}_term/<name>, each reward term's mean over the episodes' steps; and
-    eval/r_max (the buffer's R_max). The planner entries are absent when `agent.cfg.mpc` is
-    False (the agent never plans then).
+    eval/{planner,policy}_term/<name>, each reward term's mean over the episodes' steps;
+    eval/{planner,policy}_blowups, episodes cut short by a physics blow-up (left out of the
+    means); and eval/r_max (the buffer's R_max). The planner entries are absent when
+    `agent.cfg.mpc` is False (the agent never plans then).
     """
     _check_episodes(num_episodes)
     bar = env.success_bar

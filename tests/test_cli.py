@@ -8,7 +8,6 @@ failure paths (non-finite chunk, out of memory) use a toy `make_train` with a 3-
 from __future__ import annotations
 
 import csv
-import dataclasses
 import json
 import math
 import os
@@ -19,10 +18,9 @@ import sys
 from pathlib import Path
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
-from flax import struct
+from toys import ToyTrain, toy_argv
 
 from sirl_jax.envs import load
 from sirl_jax.run import cli, progress, runlog, runner
@@ -216,7 +214,10 @@ def test_corrupt_checkpoint_names_the_file_and_deletes_nothing(runs, tmp_path, c
     raw[len(raw) // 2] ^= 0x55
     victim.write_bytes(bytes(raw))
     before = _listing(run)
-    assert cli.main(["train", "--resume", str(run), "--no-progress"]) == 2
+    # Named by step, a damaged checkpoint is an error (without --resume-step, resume falls
+    # back to an older one: tests/test_faults.py).
+    argv = ["train", "--resume", str(run), "--resume-step", str(STEPS), "--no-progress"]
+    assert cli.main(argv) == 2
     err = capsys.readouterr().err
     assert victim.name in err and "nothing was deleted" in err and "Traceback" not in err
     assert _listing(run) == before
@@ -284,10 +285,10 @@ def test_short_flags_expand_to_config_fields():
 
 def test_metric_mean_and_schedule():
     m = progress.MetricMean()
-    m.add({"train/pi_loss": math.nan, "nonfinite_obs": 0, "updates": 10, "episode/count": 1})
-    m.add({"train/pi_loss": 2.0, "nonfinite_obs": 1, "updates": 30, "episode/count": 2})
-    m.add({"train/pi_loss": 4.0, "nonfinite_obs": 0, "updates": 50, "episode/count": 0})
-    assert m.pop() == {"train/pi_loss": 3.0, "nonfinite_obs": 1, "updates": 50, "episode/count": 3}
+    m.add({"train/pi_loss": math.nan, "env/blowups": 0, "updates": 10, "episode/count": 1})
+    m.add({"train/pi_loss": 2.0, "env/blowups": 1, "updates": 30, "episode/count": 2})
+    m.add({"train/pi_loss": 4.0, "env/blowups": 0, "updates": 50, "episode/count": 0})
+    assert m.pop() == {"train/pi_loss": 3.0, "env/blowups": 1, "updates": 50, "episode/count": 3}
     assert not m.pending()
     assert progress.crossed(90, 110, 100) and not progress.crossed(100, 199, 100)
     assert not progress.crossed(0, 10**9, 0)
@@ -323,74 +324,14 @@ def test_cpu_run_of_a_gpu_sized_model_states_its_cost_first(tmp_path, capsys, mo
 # ---------------------------------------------------------------- failures (toy train)
 
 
-@struct.dataclass
-class _ToyState:
-    params: jax.Array
-    buffer: dict
-    key: jax.Array
-    env_steps: jax.Array
-    updates: jax.Array
-
-
-@dataclasses.dataclass(frozen=True)
-class _ToyBuffer:
-    nbytes: int = 32
-
-    def describe(self) -> str:
-        return "toy buffer"
-
-
-@dataclasses.dataclass(frozen=True)
-class _ToyAgent:
-    iterations: int = 1
-
-
-@dataclasses.dataclass(frozen=True)
-class _ToyTrain:
-    """A `Train` stand-in: 10 env steps and one update per call; the chunk reaching `fail_at`
-    reports a NaN loss."""
-
-    fail_at: int
-    oom: bool = False
-    steps_per_call: int = 10
-    buffer: _ToyBuffer = _ToyBuffer()
-    agent: _ToyAgent = _ToyAgent()
-
-    def init(self, key):
-        zero = jnp.zeros((), jnp.int32)
-        return _ToyState(jnp.zeros(3), {"obs": jnp.zeros((4, 2))}, key, zero, zero)
-
-    def step(self, state):
-        if self.oom:
-            raise jax.errors.JaxRuntimeError("RESOURCE_EXHAUSTED: Out of memory allocating 8 GB")
-        env_steps = state.env_steps + self.steps_per_call
-        bad = env_steps >= self.fail_at
-        metrics = {"train/loss": jnp.where(bad, jnp.nan, 1.0), "nonfinite_loss": bad.astype(int),
-                   "env_steps": env_steps, "updates": state.updates + 1}  # fmt: skip
-        new = state.replace(
-            params=state.params + jnp.where(bad, jnp.nan, 1.0),
-            buffer={"obs": state.buffer["obs"] + 1.0},
-            key=jax.random.split(state.key)[0],
-            env_steps=env_steps,
-            updates=state.updates + 1,
-        )
-        return new, metrics
-
-    def evaluate(self, state, key):
-        return {"eval/x": jnp.sum(state.params)}
-
-
-def _toy_run(monkeypatch, tmp_path, toy: _ToyTrain, *flags: str) -> int:
+def _toy_run(monkeypatch, tmp_path, toy: ToyTrain, *flags: str) -> int:
     monkeypatch.setattr(runner, "make_train", lambda config, env: toy)
-    argv = ["train", "--preset", "smoke", "--steps", "2000", "--checkpoint-every", "20",
-            "--eval-every", "0", "--log-every", "10", "--no-progress", "--no-tensorboard",
-            "--run-dir", str(tmp_path / "run"), *flags]  # fmt: skip
-    return cli.main(argv)
+    return cli.main(toy_argv(tmp_path / "run", *flags))
 
 
 @pytest.mark.timeout(120)
 def test_nonfinite_chunk_stops_and_saves_last_good_state(monkeypatch, tmp_path, capsys):
-    toy = _ToyTrain(fail_at=40)
+    toy = ToyTrain(fail_at=40)
     assert _toy_run(monkeypatch, tmp_path, toy) == 1
     err = capsys.readouterr().err.strip()
     assert "env step 40" in err and "nonfinite_loss=1" in err and "env step 30" in err
@@ -399,7 +340,8 @@ def test_nonfinite_chunk_stops_and_saves_last_good_state(monkeypatch, tmp_path, 
     abstract = jax.eval_shape(toy.init, jax.random.PRNGKey(0))
     good = ckpt.restore({"state": abstract.replace(buffer=None), "buffer": abstract.buffer})
     np.testing.assert_array_equal(good["state"].params, np.full(3, 3.0))  # 3 good chunks
-    np.testing.assert_array_equal(good["buffer"]["obs"], np.full((4, 2), 3.0))
+    fresh = toy.init(jax.random.PRNGKey(0)).buffer["obs"]
+    np.testing.assert_allclose(good["buffer"]["obs"], fresh + 3.0, rtol=1e-6)
     assert int(good["state"].env_steps) == 30 and int(good["state"].updates) == 3
     rows = runlog.read_jsonl(tmp_path / "run" / "metrics.jsonl")
     assert rows[-1]["env_steps"] == 40 and rows[-1]["nonfinite_loss"] == 1
@@ -407,14 +349,14 @@ def test_nonfinite_chunk_stops_and_saves_last_good_state(monkeypatch, tmp_path, 
 
 @pytest.mark.timeout(120)
 def test_nonfinite_without_guard_keeps_only_periodic_checkpoints(monkeypatch, tmp_path, capsys):
-    assert _toy_run(monkeypatch, tmp_path, _ToyTrain(fail_at=50), "--no-guard") == 1
+    assert _toy_run(monkeypatch, tmp_path, ToyTrain(fail_at=50), "--no-guard") == 1
     assert "not saved" in capsys.readouterr().err
     assert Checkpointer(tmp_path / "run" / "checkpoints").steps() == [20, 40]
 
 
 @pytest.mark.timeout(120)
 def test_out_of_memory_says_what_to_reduce(monkeypatch, tmp_path, capsys):
-    assert _toy_run(monkeypatch, tmp_path, _ToyTrain(fail_at=10**6, oom=True)) == 1
+    assert _toy_run(monkeypatch, tmp_path, ToyTrain(fail_at=10**6, oom=True)) == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("error: out of device memory") and "--buffer-size" in err
     assert "Traceback" not in err

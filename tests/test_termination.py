@@ -267,6 +267,6 @@ def test_train_step_runs_with_episodic_on_pendulum():
         history.append(jax.device_get(m))
     assert [float(m["planning"]) for m in history] == [0.0, 1.0, 1.0, 1.0]
     for m in history:
-        assert int(m["nonfinite_obs"]) == 0 and int(m["nonfinite_loss"]) == 0
+        assert int(m["env/blowups"]) == 0 and int(m["nonfinite_loss"]) == 0
     losses = [float(m["train/termination_loss"]) for m in history[1:]]
     assert all(np.isfinite(losses)) and losses[-1] < losses[0], losses

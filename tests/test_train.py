@@ -88,7 +88,7 @@ def test_seed_phase_pretraining_and_planning(train, compiled):
 
     for i, (_, m) in enumerate(history, start=1):
         assert int(m["env_steps"]) == i * K * E
-        assert int(m["nonfinite_obs"]) == 0 and int(m["nonfinite_loss"]) == 0
+        assert int(m["env/blowups"]) == 0 and int(m["nonfinite_loss"]) == 0
     # Each chunk of 25 steps ends an episode of 50 steps per env every other chunk.
     assert [int(m["episode/count"]) for _, m in history] == [0, 2, 0, 2, 0, 2]
     np.testing.assert_allclose(float(history[1][1]["episode/length"]), T)

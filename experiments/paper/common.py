@@ -144,8 +144,10 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
     while done < tc.steps and (max_chunks is None or chunks < max_chunks):
         state, m = step(state)
         m = jax.device_get(m)
-        if m["nonfinite_obs"].any() or m["nonfinite_loss"].any():
-            raise SystemExit(f"error: {label}: non-finite values in the chunk after {done:,}")
+        blowups = m["env/blowups"] > tc.max_blowup_rate * tc.steps_per_call
+        if m["nonfinite_loss"].any() or blowups.any():
+            raise SystemExit(f"error: {label}: non-finite losses or too many physics blow-ups "
+                             f"in the chunk after {done:,}")
         before, done, chunks = done, int(m["env_steps"][0]), chunks + 1
         wall = wall0 + time.perf_counter() - start
         if bool(np.all(m["planning"] > 0)):

@@ -9,6 +9,9 @@ mujoco_playground's `MjxEnv`:
 `VecEnv` is the only place that vmaps over environments, counts steps, sets `truncated` at
 `episode_length`, and resets finished episodes. Unlike the brax/playground auto-reset wrappers
 it keeps the pre-reset observation in `final_obs`, so a learner can store the true s_{t+1}.
+It also resets an env whose physics blew up (a non-finite qpos, qvel, observation or reward),
+from that env's own key, and flags the step `blowup` so the learner drops the transition; the
+other envs are untouched, bit for bit.
 
 Shape letters: E envs, O observation size, A action size.
 """
@@ -43,6 +46,8 @@ class EnvState:
       last_length: [] int32 length of the most recently finished episode (0 before any).
       metrics: dict of [] float32 per-step quantities to log (each reward term).
       key: PRNG key used for the next reset.
+      blowup: [] bool, the step's physics went non-finite; the env was reset instead (`obs`,
+        `final_obs` are the reset observation, `reward` and `metrics` zero, no episode ended).
     """
 
     physics: Any
@@ -59,6 +64,7 @@ class EnvState:
     last_length: jax.Array
     metrics: dict[str, jax.Array]
     key: jax.Array
+    blowup: jax.Array
 
 
 class Env(abc.ABC):
@@ -80,6 +86,16 @@ class Env(abc.ABC):
     def mjx_data(self, physics: Any) -> Any:
         """The `mjx.Data` inside `EnvState.physics` (MJX envs: `physics` itself)."""
         return physics
+
+    def physics_finite(self, physics: Any) -> jax.Array:
+        """[] bool, the physics state is finite: qpos and qvel of `mjx_data(physics)`, or
+        every float leaf of `physics` when it has no qpos/qvel."""
+        data = self.mjx_data(physics)
+        if hasattr(data, "qpos") and hasattr(data, "qvel"):
+            leaves = [data.qpos, data.qvel]
+        else:
+            leaves = [x for x in jax.tree.leaves(physics) if jnp.issubdtype(x.dtype, jnp.inexact)]
+        return jnp.all(jnp.array([jnp.all(jnp.isfinite(x)) for x in leaves] or [True]))
 
     @property
     @abc.abstractmethod
@@ -135,7 +151,12 @@ def init_state(
         last_length=jnp.zeros((), jnp.int32),
         metrics=dict(metrics or {}),
         key=key,
+        blowup=jnp.zeros((), bool),
     )
+
+
+ENV_AXIS = "envs"
+"""Name of `VecEnv`'s vmap axis over envs."""
 
 
 class VecEnv:
@@ -144,6 +165,12 @@ class VecEnv:
     `reset(key) -> EnvState[E]` and `step(state[E], action[E, A]) -> EnvState[E]` are pure and
     jittable. After a step that ends an episode (terminated or truncated), `obs` is the reset
     observation of the next episode, `first` is True, and `final_obs` keeps the last observation.
+    After a step whose physics blew up, the env is reset the same way but `blowup` is True and
+    no episode ended: `terminated`, `truncated` are False, `last_return`/`last_length` keep the
+    previous finished episode's, and reward, metrics and `final_obs` hold nothing non-finite.
+
+    The env axis of the vmap is named `ENV_AXIS`, so an env can call
+    `jax.lax.axis_index(ENV_AXIS)` (the fault-injection wrapper in the tests does).
     """
 
     def __init__(self, env: Env, num_envs: int):
@@ -169,16 +196,19 @@ class VecEnv:
         return self.env.success_bar
 
     def reset(self, key: jax.Array) -> EnvState:
-        return jax.vmap(self.env.reset)(jax.random.split(key, self.num_envs))
+        keys = jax.random.split(key, self.num_envs)
+        return jax.vmap(self.env.reset, axis_name=ENV_AXIS)(keys)
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
-        return jax.vmap(self._step_one)(state, action)
+        return jax.vmap(self._step_one, axis_name=ENV_AXIS)(state, action)
 
     def _step_one(self, state: EnvState, action: jax.Array) -> EnvState:
         nxt = self.env.step(state, action)
+        blowup = ~(jnp.all(jnp.isfinite(nxt.obs)) & jnp.isfinite(nxt.reward)
+                   & self.env.physics_finite(nxt.physics))  # fmt: skip
         step_count = state.step_count + 1
-        terminated = jnp.asarray(nxt.terminated, bool)
-        truncated = jnp.logical_and(step_count >= self.env.episode_length, ~terminated)
+        terminated = jnp.asarray(nxt.terminated, bool) & ~blowup
+        truncated = (step_count >= self.env.episode_length) & ~terminated & ~blowup
         done = terminated | truncated
         episode_return = state.episode_return + nxt.reward
         key_reset, key_next = jax.random.split(state.key)
@@ -193,6 +223,7 @@ class VecEnv:
             last_return=jnp.where(done, episode_return, state.last_return),
             last_length=jnp.where(done, step_count, state.last_length),
             key=key_next,
+            blowup=jnp.zeros((), bool),
         )
         reset = stepped.replace(
             physics=fresh.physics,
@@ -202,4 +233,14 @@ class VecEnv:
             step_count=jnp.zeros((), jnp.int32),
             episode_return=jnp.zeros((), jnp.float32),
         )
-        return jax.tree.map(lambda r, s: jnp.where(done, r, s), reset, stepped)
+        zero = jnp.zeros((), jnp.float32)
+        blown = reset.replace(
+            reward=zero,
+            final_obs=fresh.obs,
+            metrics={n: zero for n in nxt.metrics},
+            last_return=state.last_return,
+            last_length=state.last_length,
+            blowup=jnp.ones((), bool),
+        )
+        out = jax.tree.map(lambda r, s: jnp.where(done, r, s), reset, stepped)
+        return jax.tree.map(lambda b, o: jnp.where(blowup, b, o), blown, out)

@@ -7,16 +7,24 @@ crash mid-save leaves the previous checkpoints untouched and the half-written on
 After the rename we record each file's size and CRC32 in `<step>/sirl_checksums.json`; restore
 checks them first, so a damaged file is named instead of silently loading garbage.
 
+Faults: a write that fails (a full disk: ENOSPC) raises `CheckpointWriteError` in one line and
+removes its own uncommitted temporary directory; the earlier checkpoints are untouched. A
+damaged checkpoint raises `CheckpointDamaged`; `set_aside` renames it to `<step>.damaged` (kept,
+no longer listed) so a resume can fall back to an older one. `remove_partial_writes` deletes the
+temporary directories a killed writer left (only the single writer of a run may call it).
+
 Nothing here ever deletes a checkpoint except orbax's own `max_to_keep` rotation on save.
 """
 
 from __future__ import annotations
 
+import errno
 import itertools
 import json
 import logging
 import os
 import re
+import shutil
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
@@ -31,6 +39,8 @@ CHECKSUMS = "sirl_checksums.json"
 _META = "meta"
 _LAYOUT = "_leaf_names"
 _SHAPES = "_leaf_shapes"
+_TMP = ".orbax-checkpoint-tmp"
+DAMAGED = ".damaged"
 
 # Orbax logs every save/restore at INFO through absl; the shell reports checkpoints itself.
 logging.getLogger("absl").setLevel(logging.WARNING)
@@ -38,6 +48,25 @@ logging.getLogger("absl").setLevel(logging.WARNING)
 
 class CheckpointError(RuntimeError):
     """A checkpoint is missing, damaged, or does not match the state it should restore into."""
+
+
+class CheckpointDamaged(CheckpointError):
+    """A checkpoint's files are missing, truncated or changed (size/CRC32), or unreadable."""
+
+
+class CheckpointWriteError(CheckpointError):
+    """A save failed (disk full, I/O error); the checkpoints written before are intact."""
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return text.splitlines()[0][:300] if text else type(e).__name__
+
+
+def _is_disk_full(e: BaseException) -> bool:
+    text = str(e)
+    return (getattr(e, "errno", None) == errno.ENOSPC or "No space left on device" in text
+            or "os_error_code='28'" in text)  # fmt: skip
 
 
 def _file_crc(path: Path) -> int:
@@ -147,13 +176,58 @@ class Checkpointer:
         try:
             self._manager.save(step, args=ocp.args.Composite(**args), force=True)
             self._manager.wait_until_finished()
-        except (ValueError, TypeError) as e:
-            raise CheckpointError(f"could not write checkpoint {self.step_dir(step)}: {e}") from e
+        except (ValueError, TypeError, OSError) as e:
+            self._remove_tmp(step)
+            raise self._write_error(step, "", e) from e
         step_dir = self.step_dir(step)
         tmp = step_dir / (CHECKSUMS + ".tmp")
-        tmp.write_text(json.dumps(_scan(step_dir), indent=0))
-        os.replace(tmp, step_dir / CHECKSUMS)
+        try:
+            tmp.write_text(json.dumps(_scan(step_dir), indent=0))
+            os.replace(tmp, step_dir / CHECKSUMS)
+        except OSError as e:
+            tmp.unlink(missing_ok=True)
+            raise self._write_error(step, " (the checkpoint is complete, its checksums are not)",
+                                    e) from e  # fmt: skip
         return step_dir
+
+    def _write_error(self, step: int, what: str, e: BaseException) -> CheckpointWriteError:
+        earlier = [s for s in self.steps() if s != step]
+        kept = f"the newest intact checkpoint is {earlier[-1]}" if earlier else "no earlier one"
+        why = "disk full (ENOSPC)" if _is_disk_full(e) else _first_line(e)
+        return CheckpointWriteError(
+            f"could not write checkpoint {self.step_dir(step)}{what}: {why}; {kept}"
+        )
+
+    def _remove_tmp(self, step: int) -> None:
+        for path in self.directory.glob(f"{step}{_TMP}*"):
+            shutil.rmtree(path, ignore_errors=True)
+
+    def partial_writes(self) -> list[Path]:
+        """Temporary directories of saves that never finished (a killed writer's)."""
+        return sorted(p for p in self.directory.glob(f"*{_TMP}*") if p.is_dir())
+
+    def remove_partial_writes(self) -> list[Path]:
+        """Deletes `partial_writes()` (never a complete checkpoint); returns what it removed.
+
+        Only the one process writing this directory may call it: another writer's save in
+        progress looks the same.
+        """
+        gone = self.partial_writes()
+        for path in gone:
+            shutil.rmtree(path, ignore_errors=True)
+        return gone
+
+    def set_aside(self, step: int) -> Path:
+        """Renames checkpoint `step` to `<step>.damaged` (or `.damaged2`, ...): kept on disk,
+        no longer listed or restored. Returns the new path."""
+        src = self.step_dir(step)
+        dst, n = src.with_name(src.name + DAMAGED), 1
+        while dst.exists():
+            n += 1
+            dst = src.with_name(f"{src.name}{DAMAGED}{n}")
+        src.rename(dst)
+        self._manager.reload()
+        return dst
 
     def verify(self, step: int) -> None:
         """Raises CheckpointError naming the first file whose size or CRC32 changed."""
@@ -166,13 +240,13 @@ class Checkpointer:
         try:
             expected = json.loads(record.read_text())
         except (OSError, ValueError) as e:
-            raise CheckpointError(f"{record} is unreadable ({e})") from e
+            raise CheckpointDamaged(f"{record} is unreadable ({e})") from e
         for rel, (size, crc) in expected.items():
             path = step_dir / rel
             if not path.is_file():
-                raise CheckpointError(f"checkpoint file {path} is missing")
+                raise CheckpointDamaged(f"checkpoint file {path} is missing")
             if path.stat().st_size != size or _file_crc(path) != crc:
-                raise CheckpointError(f"checkpoint file {path} is damaged (size/CRC32 changed)")
+                raise CheckpointDamaged(f"checkpoint file {path} is damaged (size/CRC32 changed)")
 
     def _read_meta(self, step: int) -> dict:
         try:
@@ -180,8 +254,8 @@ class Checkpointer:
                 step, args=ocp.args.Composite(**{_META: ocp.args.JsonRestore()})
             )
         except Exception as e:  # orbax raises json, key and value errors alike
-            raise CheckpointError(
-                f"checkpoint {self.step_dir(step)}: metadata unreadable ({e})"
+            raise CheckpointDamaged(
+                f"checkpoint {self.step_dir(step)}: metadata unreadable ({_first_line(e)})"
             ) from e
         return dict(restored[_META])
 
@@ -237,9 +311,8 @@ class Checkpointer:
         try:
             restored = self._manager.restore(step, args=ocp.args.Composite(**args))
         except Exception as e:  # orbax/tensorstore raise many types; all mean "unreadable"
-            first = str(e).strip().splitlines()[0][:300] if str(e).strip() else ""
-            raise CheckpointError(
-                f"checkpoint {step_dir} is unreadable ({type(e).__name__}: {first})"
+            raise CheckpointDamaged(
+                f"checkpoint {step_dir} is unreadable ({type(e).__name__}: {_first_line(e)})"
             ) from e
         out: dict[str, Any] = {_META: meta}
         for item, (names, leaves, treedef) in flats.items():

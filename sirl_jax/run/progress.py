@@ -128,17 +128,27 @@ def is_failure_metric(name: str) -> bool:
     return name.startswith("nonfinite")
 
 
-def failures(metrics: Mapping[str, float]) -> list[str]:
-    """`name=value` for each non-zero (or non-finite) `nonfinite*` counter."""
-    return [
+def failures(metrics: Mapping[str, float], env_steps: int = 0,
+             max_blowup_rate: float = 1.0) -> list[str]:  # fmt: skip
+    """Why a chunk of `env_steps` transitions must stop the run (empty: it need not).
+
+    Each non-zero (or non-finite) `nonfinite*` counter as `name=value`, and `env/blowups` when
+    it exceeds `max_blowup_rate` of the chunk's env steps (fewer are survived: the env resets).
+    """
+    bad = [
         f"{name}={value:g}"
         for name, value in metrics.items()
         if is_failure_metric(name) and (value != 0 or not math.isfinite(value))
     ]
+    blowups = metrics.get("env/blowups", 0)
+    if blowups > max_blowup_rate * env_steps or not math.isfinite(blowups):
+        bad.append(f"env/blowups={blowups:g} of {env_steps:,} env steps "
+                   f"(> max_blowup_rate={max_blowup_rate:g})")  # fmt: skip
+    return bad
 
 
 _LAST = ("env_steps", "updates", "planning", "r_max", "sirl/reference")
-_SUM_SUFFIXES = ("/count", "/terminated", "/num_updates")
+_SUM_SUFFIXES = ("/count", "/terminated", "/num_updates", "/blowups")
 
 
 def _reduction(name: str) -> str:
