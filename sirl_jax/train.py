@@ -6,7 +6,8 @@ share a `TrainState`. `Train.step` runs K vectorised env steps under one `lax.sc
   1. acts (`Train.act`): uniform random actions until planning starts, then MPPI (or the
      policy prior when `agent.mpc` is False), with a per-env warm start reset at each env's
      first step;
-  2. steps the E envs (auto-reset, `final_obs` kept) and adds E transitions to the buffer;
+  2. steps the E envs (auto-reset, `final_obs` kept) and adds E transitions to the buffer,
+     but none from an env whose physics blew up (`VecEnv` reset it; its episode is dropped);
   3. runs the updates `update_schedule` owes (`Train.update` each) in one `fori_loop` with a
      traced trip count.
 
@@ -32,6 +33,7 @@ from sirl_jax.buffer import Buffer, BufferState, make_buffer
 from sirl_jax.config import Config
 from sirl_jax.envs.base import Env, EnvState, VecEnv
 from sirl_jax.evaluate import make_evaluate
+from sirl_jax.types import Batch
 
 
 @struct.dataclass
@@ -109,7 +111,7 @@ class ChunkStats:
     terms: dict  # reward term -> [] sum over env steps
     losses: dict  # update metric -> [] sum over updates
     num_updates: jax.Array
-    nonfinite_obs: jax.Array  # [] int32 env steps whose s_{t+1} has a NaN/inf
+    blowups: jax.Array  # [] int32 env steps whose physics blew up (env reset, step dropped)
     nonfinite_loss: jax.Array  # [] int32 updates with a non-finite metric
 
     @classmethod
@@ -131,8 +133,7 @@ class ChunkStats:
             terms={n: v + jnp.sum(env.metrics[n]) for n, v in self.terms.items()},
             losses={n: v + loss_sums[n] for n, v in self.losses.items()},
             num_updates=self.num_updates + num,
-            nonfinite_obs=self.nonfinite_obs
-            + jnp.sum(~jnp.all(jnp.isfinite(env.final_obs), axis=-1), dtype=i32),
+            blowups=self.blowups + jnp.sum(env.blowup, dtype=i32),
             nonfinite_loss=self.nonfinite_loss + bad,
         )
 
@@ -150,7 +151,7 @@ class ChunkStats:
             "episode/terminated": self.terminated,
             "reward": self.reward / n_steps,
             "train/num_updates": self.num_updates,
-            "nonfinite_obs": self.nonfinite_obs,
+            "env/blowups": self.blowups,
             "nonfinite_loss": self.nonfinite_loss,
         }
         metrics.update({f"env/{n}": v / n_steps for n, v in self.terms.items()})
@@ -190,8 +191,12 @@ class Train:
     pretrain_updates: int
 
 
-def make_train(config: Config, env: Env) -> Train:
+def make_train(config: Config, env: Env, *,
+               constrain_batch: Callable[[Batch], Batch] | None = None) -> Train:  # fmt: skip
     """Builds the train functions for `config` on the unbatched `env`.
+
+    `constrain_batch` is applied to every sampled batch before the update (identity if None);
+    `sirl_jax.sharding.batch_constraint` splits it over devices.
 
     Raises ValueError when the config does not fit the task (episode length, replay capacity,
     a success bar for `g_source="target"`).
@@ -201,8 +206,9 @@ def make_train(config: Config, env: Env) -> Train:
     if none), reward (mean step reward), env/<term> (mean reward terms), train/<loss> and
     sirl/clamped_fraction (means over the chunk's updates, NaN if none), train/num_updates,
     r_max (-inf before the first recorded episode), sirl/reference (the G of the next update),
-    buffer/episodes, nonfinite_obs (env steps whose s_{t+1} has a NaN/inf), nonfinite_loss
-    (updates with a non-finite metric). A shell should stop when either count is non-zero.
+    buffer/episodes, env/blowups (env steps whose physics went non-finite: `VecEnv` reset that
+    env and the transition was not stored), nonfinite_loss (updates with a non-finite metric).
+    A shell should stop when nonfinite_loss is non-zero or blow-ups exceed its tolerated rate.
     """
     tc, ac = config.train, config.agent
     config.validate_for_task(env.episode_length)
@@ -238,6 +244,8 @@ def make_train(config: Config, env: Env) -> Train:
     def update(agent_state: AgentState, buf: BufferState, key: jax.Array):
         key_sample, key_update = jax.random.split(key)
         batch = buffer.sample(buf, key_sample)
+        if constrain_batch is not None:
+            batch = constrain_batch(batch)
         return agent.update(agent_state, batch, buffer.r_max(buf), key_update)
 
     loss_names = tuple(sorted(jax.eval_shape(
@@ -263,7 +271,7 @@ def make_train(config: Config, env: Env) -> Train:
         action, planner = act(state, key_act)
         env_state = vec.step(state.env, action)
         buf = buffer.add(state.buffer, state.env.obs, action, env_state.reward, env_state.final_obs,
-                         env_state.terminated, env_state.truncated)  # fmt: skip
+                         env_state.terminated, env_state.truncated, env_state.blowup)  # fmt: skip
         env_steps = state.env_steps + e
         num, debt, planning = update_schedule(
             state.planning, env_steps, state.update_debt, buffer.can_sample(buf), **schedule

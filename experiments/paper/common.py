@@ -6,6 +6,8 @@ writes, under `out`:
   eval.csv      per evaluation and seed: planner and policy-prior return (eval mode);
   checkpoints/  the vmapped train state after each evaluation (atomic, CRC-checked);
   done.json     written last, with the arm's wall-clock and env steps/s.
+With several local devices and S a multiple of their number, the seeds are split over them
+(`sirl_jax.sharding`, layout seeds: the same results, no communication).
 Run again with the same arguments it resumes from the newest checkpoint (CSV rows past it are
 dropped) or, when done.json exists, returns the recorded summary at once.
 """
@@ -29,6 +31,7 @@ from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.run.runlog import CsvLog
 from sirl_jax.run.states import commit
+from sirl_jax.sharding import SEEDS, make_mesh, place, seed_shardings, sharded_step
 from sirl_jax.train import make_train
 
 # The paper's results table (HumanoidBench h1hand, return at 2M steps, mean ± std of 3 seeds):
@@ -123,6 +126,12 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
         state, done = commit(jax.jit(init)(keys)), 0
         train_csv.drop_after(-1)
         eval_csv.drop_after(-1)
+
+    devices = jax.local_device_count()
+    if devices > 1 and seeds % devices == 0:  # layout seeds: S / D seeds per device
+        shardings = seed_shardings(jax.eval_shape(init, keys), make_mesh(devices, SEEDS))
+        state, step = place(state, shardings), sharded_step(jax.vmap(train.step), shardings)
+        print(f"{label}: {seeds} seeds split over {devices} devices", flush=True)
 
     def run_eval(state, env_steps: int, wall: float) -> None:
         ev = jax.device_get(evaluate(state, jax.vmap(jax.random.fold_in, (0, None))(

@@ -82,6 +82,8 @@ class TrainArgs:
     """Also log to Weights & Biases (needs `pip install wandb`)."""
     wandb_project: str = "sirl_jax"
     """W&B project name."""
+    devices: int = 1
+    """Split the envs, replay buffer and batch over this many local devices (one learner)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -333,11 +335,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def run() -> None:
     """Process entry point (`python -m sirl_jax`, `sirl-jax`): exits with `main`'s code.
-
-    After a second Ctrl-C the process leaves at once (`os._exit`) instead of waiting for the
-    XLA computation of the interrupted chunk; checkpoints are renamed into place only when
-    complete, so nothing saved is lost by not waiting.
-    """
+    After a second Ctrl-C it leaves at once (`os._exit`), not waiting for the interrupted
+    chunk; checkpoints are renamed into place only when complete, so nothing saved is lost."""
     code = main()
     if code == EXIT_ABORTED:
         sys.stdout.flush()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -23,9 +24,10 @@ from sirl_jax.envs import load
 from sirl_jax.envs import spec as registered_spec
 from sirl_jax.run import progress as prog
 from sirl_jax.run import runlog
-from sirl_jax.run.checkpoint import Checkpointer
+from sirl_jax.run.checkpoint import Checkpointer, CheckpointWriteError
 from sirl_jax.run.errors import TrainingFailure, UsageError
 from sirl_jax.run.states import commit, copy_state, restore_state, save_state
+from sirl_jax.sharding import ENVS, batch_constraint, env_shardings, make_mesh, place, sharded_step
 from sirl_jax.train import Train, make_train
 
 _EVAL_STREAM = 0x6576616C  # folded into the seed so evaluation keys never meet training keys
@@ -52,6 +54,19 @@ def build(config: Config) -> tuple[Any, Train]:
         return spec, make_train(config, env)
     except ValueError as e:
         raise UsageError(str(e)) from e
+
+
+def shard_envs(train: Train, devices: int, key: jax.Array) -> tuple[Train, Any]:
+    """`train` rebuilt with its batch split over `devices` local devices, and the state's
+    shardings (envs and buffer split, the rest replicated: `sirl_jax.sharding`, layout envs)."""
+    t = train.config
+    try:
+        mesh = make_mesh(devices, ENVS)
+        shardings = env_shardings(jax.eval_shape(train.init, key), mesh, t.train.num_envs,
+                                  t.agent.batch_size)  # fmt: skip
+    except ValueError as e:
+        raise UsageError(str(e)) from e
+    return make_train(t, train.env, constrain_batch=batch_constraint(mesh)), shardings
 
 
 def eval_key(seed: int, env_steps: int) -> jax.Array:
@@ -134,6 +149,7 @@ class Run:
     saved: int | None = None
     best: tuple[float, int] = (-math.inf, 0)  # best eval return so far and its env step
     collapse: str | None = None  # the first collapse warning, repeated in the final summary
+    shardings: Any = None  # the state's layout over devices (`shard_envs`); None: one device
 
     def evaluate(self, eval_fn, state, env_steps: int) -> dict[str, float]:
         key = eval_key(self.config.train.seed, env_steps)
@@ -152,10 +168,18 @@ class Run:
             self.best = (value, env_steps)
         return metrics
 
+    def save(self, state) -> int:
+        """Checkpoints `state`; a failed write (disk full) stops the run as a failure."""
+        try:
+            return save_state(self.ckpt, state, self.config.train.save_buffer)
+        except CheckpointWriteError as e:
+            raise TrainingFailure(f"{e}; free space and continue with: python -m sirl_jax "
+                                  f"train --resume {self.log.run_dir}") from e  # fmt: skip
+
     def nonfinite_failure(self, backup, reached: int, bad: list[str]) -> TrainingFailure:
-        where = f"non-finite values in the chunk ending at env step {reached:,}: {', '.join(bad)}"
+        where = f"the chunk ending at env step {reached:,} failed: {'; '.join(bad)}"
         if backup is not None:
-            good = save_state(self.ckpt, backup, self.config.train.save_buffer)
+            good = self.save(backup)
             return TrainingFailure(f"{where}; the last good state (env step {good:,}) is "
                                    f"saved in {self.ckpt.directory} with the earlier "
                                    "checkpoints")  # fmt: skip
@@ -165,7 +189,10 @@ class Run:
     def loop(self, state) -> None:
         """Runs chunks until train.steps, a Ctrl-C or a failure; checkpoints the final state."""
         t = self.config.train
-        step_fn = jax.jit(self.train.step, donate_argnums=0)
+        if self.shardings is None:
+            step_fn = jax.jit(self.train.step, donate_argnums=0)
+        else:
+            step_fn = sharded_step(self.train.step, self.shardings)
         backup_fn = jax.jit(copy_state) if self.guard else (lambda s: None)
         eval_fn = jax.jit(self.train.evaluate)
         env_steps, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
@@ -179,7 +206,7 @@ class Run:
                     state, metrics = step_fn(state)
                     metrics = prog.host_scalars(jax.device_get(metrics))
                 env_steps, updates = int(metrics["env_steps"]), int(metrics["updates"])
-                bad = prog.failures(metrics)
+                bad = prog.failures(metrics, env_steps - before, t.max_blowup_rate)
                 if bad:
                     self.log.log("metrics", env_steps, metrics)
                     raise self.nonfinite_failure(backup, env_steps, bad)
@@ -190,10 +217,10 @@ class Run:
                 if prog.crossed(before, env_steps, t.eval_every):
                     self.evaluate(eval_fn, state, env_steps)
                 if prog.crossed(before, env_steps, t.checkpoint_interval):
-                    self.saved = save_state(self.ckpt, state, t.save_buffer)
+                    self.saved = self.save(state)
         if stop.requested and env_steps < t.steps and mean.pending():
             self.log.log("metrics", env_steps, mean.pop())
-        self.saved = save_state(self.ckpt, state, t.save_buffer)
+        self.saved = self.save(state)
         if self.collapse is not None:
             print(self.collapse)
         how = "stopped (Ctrl-C/SIGTERM)" if env_steps < t.steps else "done"
@@ -235,7 +262,8 @@ def train_command(args, derived: dict) -> None:
     enable_compilation_cache()
     train_run(config, run_dir, resume_step=args.resume_step, resuming=resuming, derived=derived,
               keep=args.keep, guard=args.guard, show_progress=args.progress,
-              tensorboard=args.tensorboard, wandb_run_factory=wandb_run_factory)  # fmt: skip
+              tensorboard=args.tensorboard, wandb_run_factory=wandb_run_factory,
+              devices=args.devices)  # fmt: skip
 
 
 def print_tasks() -> None:
@@ -257,11 +285,13 @@ def print_tasks() -> None:
 def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
               resuming: bool = False, derived: dict | None = None, keep: int = 3,
               guard: bool = True, show_progress: bool = True, tensorboard: bool = True,
-              wandb_run_factory=None) -> None:  # fmt: skip
+              wandb_run_factory=None, devices: int = 1) -> None:  # fmt: skip
     """The body of `train`: build, restore or init, log the run's facts, run the loop."""
     from sirl_jax.run.buffer_memory import check_buffer_fits
 
     spec, train = build(config)
+    key = jax.random.PRNGKey(config.train.seed)
+    train, shardings = shard_envs(train, devices, key) if devices != 1 else (train, None)
     print(runlog.describe_run(config, spec, train.buffer.describe(), run_dir,
                               train.agent.iterations, derived))  # fmt: skip
     on_cpu = jax.default_backend() == "cpu"
@@ -271,7 +301,6 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
               "one update to estimate the cost...", flush=True)  # fmt: skip
     check_buffer_fits(train.buffer.nbytes)
     run_dir.mkdir(parents=True, exist_ok=True)
-    key = jax.random.PRNGKey(config.train.seed)
     ckpt = Checkpointer(run_dir / "checkpoints", max_to_keep=keep)
     try:
         saved = None
@@ -279,10 +308,16 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
             # restore before writing anything, so a bad checkpoint changes nothing
             if resuming:
                 check_resume_step(ckpt, resume_step)
-                state, saved = restore_state(ckpt, train.init, key, resume_step)
+                for path in ckpt.remove_partial_writes():
+                    print(f"note: removed {path}, an unfinished checkpoint write (the run was "
+                          "killed while saving)", file=sys.stderr)  # fmt: skip
+                state, saved = restore_state(ckpt, train.init, key, resume_step,
+                                             fall_back=resume_step is None)  # fmt: skip
                 print(f"resumed from env step {saved:,}")
             else:
                 state = commit(jax.jit(train.init)(key))
+            if shardings is not None:
+                state = place(state, shardings)
         runlog.write_json(run_dir / "config.json", config_to_dict(config))
         runlog.record_versions(run_dir)
         wandb_run = wandb_run_factory(run_dir) if wandb_run_factory else None
@@ -294,7 +329,7 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
                 print(cost_line(train, state) + "; use --preset smoke or a GPU", flush=True)
             bar = prog.Progress(config.train.steps, int(jax.device_get(state.env_steps)),
                                 enabled=show_progress)  # fmt: skip
-            Run(config, train, ckpt, log, bar, guard, saved).loop(state)
+            Run(config, train, ckpt, log, bar, guard, saved, shardings=shardings).loop(state)
         finally:
             log.close()
     finally:
