@@ -30,6 +30,9 @@ class TrainConfig:
     """Task id or alias from the registry (`pendulum`, `h1hand-walk-v0`, ...), or a MuJoCo
     Playground env as `dmc:CartpoleSwingup` / `playground:Go1JoystickFlatTerrain` (needs the
     optional `playground` extra)."""
+    impl: str = "jax"
+    """MJX physics backend: "jax" (XLA, any device; the default, CPU and GPU) or "warp"
+    (MJX-Warp on a CUDA GPU or the CPU; needs the `warp` extra). See docs/training.md."""
     seed: int = 0
     """PRNG seed of the run."""
     steps: int = 2_000_000
@@ -71,6 +74,7 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         _check(bool(self.task), "train.task", self.task, "a non-empty task name")
+        _check(self.impl in ("jax", "warp"), "train.impl", self.impl, "'jax' or 'warp'")
         _check(self.seed >= 0, "train.seed", self.seed, "an int >= 0")
         _check(self.steps >= 1, "train.steps", self.steps, "an int >= 1")
         _check(self.num_envs >= 1, "train.num_envs", self.num_envs, "an int >= 1")

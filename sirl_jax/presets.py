@@ -5,6 +5,10 @@
                  log-prob (`entropy_form="v1"`), the one setting where the fork differs.
   smoke          a CPU-sized run on the pendulum swing-up: tiny model, 4 envs, a few thousand steps.
   cpu            a CPU-sized learning run on the pendulum swing-up (experiments/learning_check.py).
+  gpu            the reference agent on h1hand-walk for one GPU, one seed of the paper's setting
+                 (1 env, UTD 1); S seeds are vmapped by the caller (docs/training.md).
+  gpu-fast       gpu with 16 envs per seed and UTD 1/16 (one update per vectorised step), as
+                 the official TD-MPC2 vectorised branch runs: a deviation from the paper.
 
 The CPU presets fit any task (`fits_task`): the shell applies `config.fit_to_task` to them,
 which raises their episode-length-dependent sizes (replay capacity, seed steps, eval cadence)
@@ -114,6 +118,21 @@ def _cpu() -> Config:
     )
 
 
+def _gpu() -> Config:
+    # One seed of the paper's setting. Config has no seed axis: S seeds run as one program
+    # through jax.vmap over Train.init/step keys (experiments/paper/common.py run_arm).
+    return Config(
+        agent=AgentConfig(),
+        train=TrainConfig(task="h1hand-walk-v0", impl="jax", chunk_steps=500, eval_episodes=10),
+    )
+
+
+def _gpu_fast() -> Config:
+    base = _gpu()
+    train = dataclasses.replace(base.train, num_envs=16, utd=1 / 16, chunk_steps=100)
+    return dataclasses.replace(base, train=train)
+
+
 register_preset("default", Config, "the reference: TD-MPC2 5M + TDMPBC, HumanoidBench settings")
 register_preset(
     "tdmpbc-paper", _tdmpbc_paper, "the paper's runs: default + the HB fork's v1 policy log-prob"
@@ -123,6 +142,10 @@ register_preset(
 )
 register_preset(
     "cpu", _cpu, "CPU learning run: small model, pendulum, 8 envs, UTD 0.25", fits_task=True
+)
+register_preset("gpu", _gpu, "one GPU seed of the paper's setting: 5M, 512 x 8 MPPI, 1 env, UTD 1")
+register_preset(
+    "gpu-fast", _gpu_fast, "gpu with 16 envs per seed, UTD 1/16 (deviation: not the paper's)"
 )
 
 __all__ = ["PRESETS", "Preset", "get_preset", "register_preset"]

@@ -3,12 +3,15 @@
 One control step = 10 physics steps (50 Hz). Columns:
   MJX per-call: `jit(vmap(control_step))` called once per control step from Python.
   MJX scan:     `jit` of a `lax.scan` over CHUNK control steps of `vmap(control_step)`.
+  impl:         the MJX backend of those two columns, "jax" or "warp" (MJX-Warp on its CPU
+                device, buffers sized by `sirl_jax.envs.physics`; needs warp-lang).
   MuJoCo C:     one thread (`mj_step` loop), and `mujoco.rollout` on 2 threads with E envs.
 Also: compile time of one control step (E=1) and bytes of one env's `mjx.Data`.
 Actions are small smooth perturbations of the keyframe-holding action (the robot stands, so
 contacts stay realistic for locomotion).
 
 Run: .venv/bin/python -m experiments.bench.bench_robot [--envs 1 16 64 256] [--contacts locomotion]
+     .venv/bin/python -m experiments.bench.bench_robot --envs 64 --impls jax warp --skip-compile
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import numpy as np
 from mujoco import mjx, rollout
 
 from sirl_jax.envs import h1
+from sirl_jax.envs.physics import Physics, Simulator, warp_unavailable
 from sirl_jax.run.compile_cache import enable_compilation_cache
 
 CHUNK = 20  # control steps per jitted scan
@@ -51,12 +55,21 @@ def _timed(fn, repeats: int) -> float:
     return float(np.median(times))
 
 
-def bench_mjx(model, robot, n_envs: int, mode: str, repeats: int) -> tuple[float, float]:
+def bench_mjx(
+    model, robot, n_envs: int, mode: str, repeats: int, impl: str = "jax"
+) -> tuple[float, float]:
     """Returns (control steps/s summed over envs, first-call seconds incl. compile)."""
-    mx = mjx.put_model(model)
-    d0 = h1.keyframe_data(model, mx)
-    batch = jax.tree.map(lambda x: jnp.broadcast_to(x, (n_envs, *x.shape)), d0)
-    stepper = jax.vmap(h1.make_control_step(), in_axes=(None, 0, 0))
+    sim = Simulator(model, Physics(impl, num_worlds=n_envs))
+    mx = sim.mx
+    d0 = h1.keyframe_data(model, mx, sim=sim)
+    # vmap, not broadcast_to: MJX-Warp's data keeps its shared (contact pool) fields unbatched
+    batch = jax.jit(jax.vmap(lambda _: d0))(jnp.zeros(n_envs))
+    control_step = h1.make_control_step()
+
+    def one(mx, d, c):  # Warp's shared contact pool goes in and out around the step
+        return sim.detach_pool(control_step(mx, sim.attach_pool(d), c))
+
+    stepper = jax.vmap(one, in_axes=(None, 0, 0))
     ctrls = robot.action_to_ctrl(jnp.asarray(_actions(robot, CHUNK, n_envs)))
     if mode == "per-call":
         step = jax.jit(lambda d, c: stepper(mx, d, c))
@@ -136,6 +149,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--envs", type=int, nargs="*", default=[1, 16, 64, 256])
     parser.add_argument("--modes", nargs="*", default=["per-call", "scan"])
+    parser.add_argument("--impls", nargs="*", default=["jax"], choices=["jax", "warp"])
     parser.add_argument("--variant", default="h1hand", choices=sorted(h1.VARIANTS))
     parser.add_argument("--contacts", default="locomotion", choices=h1.CONTACT_PROFILES)
     parser.add_argument(
@@ -171,25 +185,29 @@ def main() -> None:
     if not args.skip_compile:
         print(f"cold compile of one control step (E=1): {cold_compile_seconds(args):.0f} s")
     print(
-        "\n| E | MJX per-call (steps/s) | MJX scan (steps/s) | C rollout 2 threads | "
+        "\n| E | impl | MJX per-call (steps/s) | MJX scan (steps/s) | C rollout 2 threads | "
         "C 1 thread | MJX best / C 1 thread | first call (s) |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for n_envs in args.envs:
-        row, firsts = {}, []
-        for mode in args.modes:
-            rate, first = bench_mjx(model, robot, n_envs, mode, args.repeats)
-            row[mode] = rate
-            firsts.append(f"{first:.0f}")
-        roll = bench_c_rollout(model, robot, n_envs, n_steps=max(20, 1000 // n_envs))
-        c1 = bench_c_single(model, robot)  # again, next to the MJX numbers of this row
-        best = max(row.values())
-        print(
-            f"| {n_envs} | {row.get('per-call', float('nan')):.0f} | "
-            f"{row.get('scan', float('nan')):.0f} | {roll:.0f} | {c1:.0f} | {best / c1:.2f} | "
-            f"{'/'.join(firsts)} |",
-            flush=True,
-        )
+        for impl in args.impls:
+            if impl == "warp" and warp_unavailable():
+                print(f"| {n_envs} | warp | {warp_unavailable()} |", flush=True)
+                continue
+            row, firsts = {}, []
+            for mode in args.modes:
+                rate, first = bench_mjx(model, robot, n_envs, mode, args.repeats, impl)
+                row[mode] = rate
+                firsts.append(f"{first:.0f}")
+            roll = bench_c_rollout(model, robot, n_envs, n_steps=max(20, 1000 // n_envs))
+            c1 = bench_c_single(model, robot)  # again, next to the MJX numbers of this row
+            best = max(row.values())
+            print(
+                f"| {n_envs} | {impl} | {row.get('per-call', float('nan')):.0f} | "
+                f"{row.get('scan', float('nan')):.0f} | {roll:.0f} | {c1:.0f} | "
+                f"{best / c1:.2f} | {'/'.join(firsts)} |",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -13,12 +13,15 @@ Action [1] in [-1, 1]: motor torque as a fraction of the limit.
 
 from __future__ import annotations
 
+import copy
+
 import jax
 import jax.numpy as jnp
 import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs.base import Env, EnvState, init_state
+from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, Simulator
 from sirl_jax.envs.registry import TASKS, TaskSpec, register
 
 _PENDULUM_MJCF = """
@@ -46,13 +49,23 @@ class PendulumSwingup(Env):
     n_substeps = 2
     """Physics steps per control step: 2 x 0.01 s = 50 Hz control."""
 
-    def __init__(self, episode_length: int = 250):
+    def __init__(self, episode_length: int = 250, physics: Physics | None = None):
         if episode_length < 1:
             raise ValueError(f"episode_length={episode_length!r} is invalid; allowed: >= 1")
         self._episode_length = episode_length
         self.mj_model = mujoco.MjModel.from_xml_string(_PENDULUM_MJCF)
-        self.mjx_model = mjx.put_model(self.mj_model, impl="jax")
-        self._data0 = mjx.make_data(self.mjx_model, impl="jax")
+        self._set_physics(physics or Physics())
+
+    def _set_physics(self, physics: Physics) -> None:
+        self.sim = Simulator(self.mj_model, physics)
+        self.mjx_model = self.sim.mx
+        self._data0 = self.sim.make_data()
+
+    def with_physics(self, physics: Physics) -> PendulumSwingup:
+        """A copy that simulates with `physics` (impl, worlds, Warp buffer margin)."""
+        env = copy.copy(self)
+        env._set_physics(physics)
+        return env
 
     @property
     def observation_size(self) -> int:
@@ -71,29 +84,33 @@ class PendulumSwingup(Env):
         return 150.0
 
     def metric_names(self) -> tuple[str, ...]:
-        return ("upright", "small_control", "small_velocity")
+        extra = (OVERFLOW_METRIC,) if self.sim.impl == "warp" else ()
+        return ("upright", "small_control", "small_velocity", *extra)
 
     def reset(self, key: jax.Array) -> EnvState:
         key_angle, key_next = jax.random.split(key)
         angle = jax.random.uniform(key_angle, (1,), minval=-jnp.pi, maxval=jnp.pi)
         data = self._data0.replace(qpos=angle, qvel=jnp.zeros(1))
-        data = mjx.forward(self.mjx_model, data)
+        data = self.sim.detach_pool(mjx.forward(self.mjx_model, self.sim.attach_pool(data)))
         zero = jnp.zeros((), jnp.float32)
         metrics = {name: zero for name in self.metric_names()}
         return init_state(data, self._obs(data), key_next, metrics=metrics)
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         ctrl = jnp.clip(action, -1.0, 1.0)
-        data = state.physics.replace(ctrl=ctrl)
+        data = self.sim.attach_pool(state.physics).replace(ctrl=ctrl)
 
         def substep(d, _):
             return mjx.step(self.mjx_model, d), None
 
         data, _ = jax.lax.scan(substep, data, None, length=self.n_substeps)
+        data, overflow = self.sim.pop_overflow(data)
         terms = self._reward_terms(data, ctrl)
         reward = terms["upright"] * terms["small_control"] * terms["small_velocity"]
+        if self.sim.impl == "warp":
+            terms[OVERFLOW_METRIC] = overflow
         return state.replace(
-            physics=data,
+            physics=self.sim.detach_pool(data),
             obs=self._obs(data),
             reward=reward.astype(jnp.float32),
             terminated=jnp.zeros((), bool),

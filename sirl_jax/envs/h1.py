@@ -28,6 +28,8 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from sirl_jax.envs.physics import Simulator
+
 ASSET_DIR = Path(__file__).resolve().parents[2] / "assets" / "h1_shadow"
 VARIANTS = {"h1hand": "h1_shadow.xml", "h1": "h1.xml"}
 CONTACT_PROFILES = ("locomotion", "manipulation")
@@ -266,11 +268,17 @@ def make_control_step(
     return step
 
 
-def keyframe_data(model: mujoco.MjModel, mx: mjx.Model, key: str = "stand") -> mjx.Data:
-    """An `mjx.Data` at a keyframe (qpos, qvel, ctrl from the key), after a forward pass."""
+def keyframe_data(
+    model: mujoco.MjModel, mx: mjx.Model, key: str = "stand", sim: Simulator | None = None
+) -> mjx.Data:
+    """An `mjx.Data` at a keyframe (qpos, qvel, ctrl from the key), after a forward pass.
+
+    `sim`: the `physics.Simulator` of `mx` when it is not MJX-JAX; the data then comes back
+    without Warp's contact pool (`Simulator.detach_pool`), ready to broadcast over envs.
+    """
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, _id(model, mujoco.mjtObj.mjOBJ_KEY, key))
-    d = mjx.make_data(mx)
+    d = mjx.make_data(mx) if sim is None else sim.make_data(mx)
     d = d.replace(
         qpos=jnp.asarray(data.qpos, d.qpos.dtype),
         qvel=jnp.asarray(data.qvel, d.qvel.dtype),
@@ -278,4 +286,6 @@ def keyframe_data(model: mujoco.MjModel, mx: mjx.Model, key: str = "stand") -> m
     )
     # jit-compiled forward: every leaf comes back as a device array, so a jitted step sees the
     # same argument types on its first and later calls (no second compile).
-    return jax.jit(mjx.forward)(mx, d)
+    if sim is None:
+        return jax.jit(mjx.forward)(mx, d)
+    return sim.detach_pool(jax.jit(mjx.forward)(mx, sim.attach_pool(d)))

@@ -31,7 +31,9 @@ import numpy as np
 from mujoco import mjx
 
 from sirl_jax.envs import h1
+from sirl_jax.envs import physics as _physics
 from sirl_jax.envs.base import Env, EnvState, init_state
+from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, Simulator
 
 FRAME_SKIP = h1.N_SUBSTEPS
 """Physics substeps per control step (dt 0.002 s -> 50 Hz control), as in HumanoidBench."""
@@ -125,12 +127,8 @@ def add_static_geom(
 
 
 def contact_arrays(data: mjx.Data) -> tuple[jax.Array, jax.Array]:
-    """(dist [C], geom [C, 2]) of the MJX contact slots (MJX 3.17 moved `contact` to `_impl`)."""
-    impl = getattr(data, "_impl", None)
-    contact = getattr(impl, "contact", None) if impl is not None else None
-    if contact is None:
-        contact = data.contact
-    return contact.dist, contact.geom
+    """(dist [C], geom [C, 2]) of one env's contacts, either impl (`physics.contact_arrays`)."""
+    return _physics.contact_arrays(data)
 
 
 def geom_mask(model: mujoco.MjModel, ids) -> np.ndarray:
@@ -152,6 +150,7 @@ class HumanoidEnv(Env):
         variant: str = "h1hand",
         episode_length: int = 1000,
         success_bar: float | None = None,
+        physics: Physics | None = None,
     ):
         if variant not in ("h1hand", "h1"):
             raise ValueError(f"unknown robot variant {variant!r}; allowed: 'h1hand', 'h1'")
@@ -166,11 +165,23 @@ class HumanoidEnv(Env):
         self.mj_model = spec.compile()
         self.robot = h1.Robot(self.mj_model)
         task.bind(self.mj_model, self.robot)
-        self.mx = mjx.put_model(self.mj_model)
+        self._set_physics(physics or Physics())
         self._control_step = h1.make_control_step(FRAME_SKIP)
         self._qpos0 = jnp.asarray(self.mj_model.key_qpos[0], jnp.float32)
         nq, nv = self.mj_model.nq, self.mj_model.nv
         self._obs_size = nq + nv + task.extra_obs_size
+
+    def _set_physics(self, physics: Physics) -> None:
+        self.sim = Simulator(self.mj_model, physics)
+        self.mx = self.sim.mx
+        extra = (OVERFLOW_METRIC,) if self.sim.impl == "warp" else ()
+        self._metric_names = tuple(self.task.metric_names) + extra
+
+    def with_physics(self, physics: Physics) -> HumanoidEnv:
+        """A copy that simulates with `physics` (impl, worlds, Warp buffer margin)."""
+        env = copy.copy(self)
+        env._set_physics(physics)
+        return env
 
     # -- Env contract -------------------------------------------------------------------------
     @property
@@ -190,7 +201,7 @@ class HumanoidEnv(Env):
         return self._success_bar
 
     def metric_names(self) -> tuple[str, ...]:
-        return tuple(self.task.metric_names)
+        return self._metric_names
 
     def with_model(self, mx: mjx.Model) -> HumanoidEnv:
         """A shallow copy that steps `mx` (e.g. a traced jit argument) instead of its own model."""
@@ -205,24 +216,28 @@ class HumanoidEnv(Env):
             key_noise, self._qpos0.shape, minval=-RESET_NOISE, maxval=RESET_NOISE
         )
         qpos, task_state = self.task.init(key_task, self._qpos0 + noise)
-        data = mjx.make_data(self.mx)
+        data = self.sim.make_data(self.mx)
         data = data.replace(qpos=qpos, qvel=jnp.zeros_like(data.qvel))
         # Positions only (xpos, xmat, site_xpos for the observation extras). `step` starts with a
         # full forward pass anyway, and leaving collision and the solver out of reset halves the
         # compiled program (VecEnv's auto-reset inlines a reset in every step).
-        data = mjx.kinematics(self.mx, data)
+        data = self.sim.detach_pool(mjx.kinematics(self.mx, self.sim.attach_pool(data)))
         obs = self._observe(data, task_state)
-        metrics = {name: jnp.zeros((), jnp.float32) for name in self.task.metric_names}
+        metrics = {name: jnp.zeros((), jnp.float32) for name in self._metric_names}
         return init_state(data, obs, key_next, task=task_state, metrics=metrics)
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         """One control step: 10 physics substeps, then reward/termination of the returned data."""
-        data = self._control_step(self.mx, state.physics, self.robot.action_to_ctrl(action))
+        data = self.sim.attach_pool(state.physics)
+        data = self._control_step(self.mx, data, self.robot.action_to_ctrl(action))
+        data, overflow = self.sim.pop_overflow(data)
         reward, terminated, task_state, metrics = self.task.evaluate(self.robot, data, state.task)
         obs = self._observe(data, task_state)
         metrics = {k: jnp.asarray(v, jnp.float32) for k, v in metrics.items()}
+        if self.sim.impl == "warp":
+            metrics[OVERFLOW_METRIC] = overflow
         return state.replace(
-            physics=data,
+            physics=self.sim.detach_pool(data),
             task=task_state,
             obs=obs,
             reward=jnp.asarray(reward, jnp.float32),

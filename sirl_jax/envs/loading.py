@@ -4,7 +4,8 @@ Names: a registry id (`h1hand-walk-v0`, `pendulum`), an alias (`walk`), or a pre
 for an optional family: `dmc:<Name>` / `playground:<Name>` (MuJoCo Playground, optional
 extra). The env is the source of truth for its episode length and success bar: the returned
 spec carries the env's values, so a factory override (`episode_length=...`) cannot leave the
-two disagreeing.
+two disagreeing. `physics` picks the MJX backend (`sirl_jax/envs/physics.py`): factories build
+MJX-JAX envs, and `with_physics` rebuilds one for another impl.
 """
 
 from __future__ import annotations
@@ -12,10 +13,11 @@ from __future__ import annotations
 import dataclasses
 
 from sirl_jax.envs.base import Env
+from sirl_jax.envs.physics import Physics, check_impl
 from sirl_jax.envs.playground_adapter import PREFIXES, register_playground_task
 from sirl_jax.envs.registry import TASKS, TaskSpec
 
-__all__ = ["PREFIXES", "load", "spec"]
+__all__ = ["PREFIXES", "load", "spec", "with_physics"]
 
 
 def spec(name: str) -> TaskSpec:
@@ -36,10 +38,36 @@ def spec(name: str) -> TaskSpec:
     return TASKS.resolve(name)
 
 
-def load(name: str, **kwargs) -> tuple[TaskSpec, Env]:
-    """(spec, env) of a task; `kwargs` go to the task's factory (e.g. `episode_length`)."""
+def with_physics(env: Env, physics: Physics) -> Env:
+    """`env` simulating with `physics`; an MJX-JAX env is returned as is for impl="jax".
+
+    Raises:
+      ImportError / RuntimeError: impl="warp" where warp-lang is missing / Warp cannot run.
+      ValueError: the env cannot switch its physics (it has no `with_physics`).
+    """
+    check_impl(physics.impl)
+    sim = getattr(env, "sim", None)
+    if physics.impl == "jax" and (sim is None or sim.impl == "jax"):
+        return env
+    if not hasattr(env, "with_physics"):
+        raise ValueError(
+            f"{type(env).__name__} has no with_physics, so it cannot run impl={physics.impl!r}; "
+            "allowed: impl='jax'"
+        )
+    return env.with_physics(physics)
+
+
+def load(name: str, physics: Physics | None = None, **kwargs) -> tuple[TaskSpec, Env]:
+    """(spec, env) of a task; `kwargs` go to the task's factory (e.g. `episode_length`).
+
+    physics: the MJX backend (None: MJX-JAX); impl="warp" is checked before anything is built.
+    """
+    if physics is not None:
+        check_impl(physics.impl)
     registered = spec(name)
     env = registered.factory(**kwargs)
+    if physics is not None:
+        env = with_physics(env, physics)
     return (
         dataclasses.replace(
             registered, episode_length=env.episode_length, success_bar=env.success_bar

@@ -8,7 +8,9 @@ Playground registry (locomotion, manipulation, dm_control). A dict observation u
 `state` entry. Playground's `done` (a fall, or NaN physics in the dm_control ports) becomes
 `terminated`; the time limit is `episode_length / action_repeat` from the env's config and is
 enforced by `VecEnv`, not by Playground's wrappers. Physics runs with `impl="jax"` unless
-`impl` is given (Playground's default, warp, is slow or unavailable on CPU).
+`impl` (or `physics`, which also sizes Warp's buffers from the env's contact profile, as
+`sirl_jax/envs/physics.py` does for our tasks) says otherwise; Playground's default, warp, is
+slow or unavailable on CPU.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from sirl_jax.envs.base import Env, EnvState, init_state
+from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, Simulator
 from sirl_jax.envs.registry import TASKS, TaskSpec, register
 
 PREFIXES = ("dmc:", "playground:")
@@ -51,7 +54,13 @@ class PlaygroundEnv(Env):
     bookkeeping (command targets, RNG) carries through unchanged.
     """
 
-    def __init__(self, name: str, impl: str | None = "jax", action_repeat: int = 1):
+    def __init__(
+        self,
+        name: str,
+        impl: str | None = "jax",
+        action_repeat: int = 1,
+        physics: Physics | None = None,
+    ):
         suite, env_name = _split_name(name)
         registry = _import_playground()
         valid = registry.dm_control_suite.ALL_ENVS if suite == "dmc" else registry.ALL_ENVS
@@ -59,8 +68,21 @@ class PlaygroundEnv(Env):
             raise ValueError(f"unknown {suite} env {env_name!r}; valid: {', '.join(valid)}")
         if action_repeat < 1:
             raise ValueError(f"action_repeat={action_repeat!r} is invalid; allowed: >= 1")
+        if physics is None and impl == "warp":
+            physics = Physics("warp")
+        impl = physics.impl if physics is not None else impl
         overrides = {"impl": impl} if impl is not None else None
         self.env = registry.load(env_name, config_overrides=overrides)
+        self.sim = None
+        if physics is not None and physics.impl == "warp":
+            self.sim = Simulator(self.env.mj_model, physics)
+            missing = {"naconmax", "njmax"} - set(self.env._config.keys())
+            if missing:
+                raise ValueError(f"{name} has no {sorted(missing)} in its config, so Warp's "
+                                 "buffers cannot be sized; use impl='jax'")  # fmt: skip
+            buffers = self.sim.buffers
+            overrides.update(naconmax=buffers.naconmax, njmax=buffers.njmax)
+            self.env = registry.load(env_name, config_overrides=overrides)
         self.name = name
         self.action_repeat = action_repeat
         config = self.env._config
@@ -68,6 +90,19 @@ class PlaygroundEnv(Env):
         probe = jax.eval_shape(self.env.reset, jax.random.PRNGKey(0))
         self._obs_size = int(self._flat_obs(probe.obs).shape[-1])
         self._metric_names = tuple(sorted(probe.metrics))
+        self._extra = (OVERFLOW_METRIC,) if self.sim is not None else ()
+
+    def with_physics(self, physics: Physics) -> PlaygroundEnv:
+        """The same env rebuilt to simulate with `physics` (impl, worlds, Warp buffer margin)."""
+        return PlaygroundEnv(self.name, action_repeat=self.action_repeat, physics=physics)
+
+    def _attach(self, pg_state: Any) -> Any:
+        return pg_state if self.sim is None else pg_state.replace(
+            data=self.sim.attach_pool(pg_state.data))  # fmt: skip
+
+    def _detach(self, pg_state: Any) -> Any:
+        return pg_state if self.sim is None else pg_state.replace(
+            data=self.sim.detach_pool(pg_state.data))  # fmt: skip
 
     @staticmethod
     def _flat_obs(obs: Any) -> jax.Array:
@@ -101,16 +136,19 @@ class PlaygroundEnv(Env):
         return self._episode_length
 
     def metric_names(self) -> tuple[str, ...]:
-        return self._metric_names
+        return self._metric_names + self._extra
 
-    def _metrics(self, pg_state: Any) -> dict[str, jax.Array]:
-        return {k: jnp.asarray(pg_state.metrics[k], jnp.float32) for k in self._metric_names}
+    def _metrics(self, pg_state: Any, overflow: jax.Array | None = None) -> dict[str, jax.Array]:
+        metrics = {k: jnp.asarray(pg_state.metrics[k], jnp.float32) for k in self._metric_names}
+        if self._extra:
+            metrics[OVERFLOW_METRIC] = jnp.zeros((), jnp.float32) if overflow is None else overflow
+        return metrics
 
     def reset(self, key: jax.Array) -> EnvState:
         key_env, key_next = jax.random.split(key)
         pg_state = self.env.reset(key_env)
         obs = self._flat_obs(pg_state.obs)
-        return init_state(pg_state, obs, key_next, metrics=self._metrics(pg_state))
+        return init_state(self._detach(pg_state), obs, key_next, metrics=self._metrics(pg_state))
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         def repeat(carry, _):
@@ -121,14 +159,21 @@ class PlaygroundEnv(Env):
             return (nxt, total + alive * nxt.reward), None
 
         (pg_state, reward), _ = jax.lax.scan(
-            repeat, (state.physics, jnp.zeros((), jnp.float32)), None, length=self.action_repeat
+            repeat,
+            (self._attach(state.physics), jnp.zeros((), jnp.float32)),
+            None,
+            length=self.action_repeat,
         )
+        overflow = None
+        if self.sim is not None:
+            data, overflow = self.sim.pop_overflow(pg_state.data)
+            pg_state = pg_state.replace(data=data)
         return state.replace(
-            physics=pg_state,
+            physics=self._detach(pg_state),
             obs=jnp.asarray(self._flat_obs(pg_state.obs), jnp.float32),
             reward=jnp.asarray(reward, jnp.float32),
             terminated=jnp.asarray(pg_state.done, bool),
-            metrics=self._metrics(pg_state),
+            metrics=self._metrics(pg_state, overflow),
         )
 
 
