@@ -236,7 +236,7 @@ def train_seconds(sizes: Sizes, task: str, num_envs: int, utd: float, sirl: bool
         t1 = time.perf_counter()
         state, metrics = jax.block_until_ready(step(state))
         times.append(time.perf_counter() - t1)
-    bad = int(np.sum(jax.device_get(metrics["nonfinite_obs"] + metrics["nonfinite_loss"])))
+    bad = int(np.sum(jax.device_get(metrics["env/blowups"] + metrics["nonfinite_loss"])))
     return float(np.median(times[1:])), first, bad
 
 
@@ -310,7 +310,7 @@ class Bench:
                 note = (f"per seed ({SEEDS * e * s.train_chunk / seconds:.4g} over the seeds),"
                         f" first call {first:.0f} s")  # fmt: skip
                 if bad:
-                    raise FloatingPointError(f"{bad} non-finite observations or losses")
+                    raise FloatingPointError(f"{bad} physics blow-ups or non-finite losses")
                 return e * s.train_chunk / seconds, "env steps/s", note
 
             self.run(f"train {name} S={SEEDS} E={e} sirl={'on' if sirl else 'off'}", fn)
