@@ -316,8 +316,8 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
     print(runlog.describe_run(config, spec, train.buffer.describe(), run_dir,
                               train.agent.iterations, derived))  # fmt: skip
     on_cpu = jax.default_backend() == "cpu"
-    probe_cost = on_cpu and config.agent.model_size != "tiny"
-    if probe_cost:
+    probe_cost = config.agent.model_size != "tiny"  # on any device: the same measured estimate
+    if probe_cost and on_cpu:
         print(f"CPU only: a {config.agent.model_size} model is GPU-sized; timing one plan and "
               "one update to estimate the cost...", flush=True)  # fmt: skip
     check_buffer_fits(train.buffer.nbytes)
@@ -347,7 +347,8 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
             if saved is not None:
                 log.drop_after(saved)
             if probe_cost:
-                print(cost_line(train, state) + "; use --preset smoke or a GPU", flush=True)
+                hint = "; use --preset smoke or a GPU" if on_cpu else ""
+                print(cost_line(train, state) + hint, flush=True)
             bar = prog.Progress(config.train.steps, int(jax.device_get(state.env_steps)),
                                 enabled=show_progress)  # fmt: skip
             Run(config, train, ckpt, log, bar, guard, saved, shardings=shardings).loop(state)
