@@ -95,7 +95,10 @@ class Env(abc.ABC):
             leaves = [data.qpos, data.qvel]
         else:
             leaves = [x for x in jax.tree.leaves(physics) if jnp.issubdtype(x.dtype, jnp.inexact)]
-        return jnp.all(jnp.array([jnp.all(jnp.isfinite(x)) for x in leaves] or [True]))
+        finite = jnp.ones((), bool)
+        for x in leaves:
+            finite &= jnp.all(jnp.isfinite(x))
+        return finite
 
     @property
     @abc.abstractmethod
