@@ -7,6 +7,7 @@ import math
 import jax
 import jax.numpy as jnp
 import mujoco
+import numpy as np
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
@@ -17,6 +18,7 @@ from sirl_jax.envs.humanoid import (
     geom_mask,
     set_contact_bits,
 )
+from sirl_jax.envs.overlap import PairQuery, below_floor
 from sirl_jax.envs.tasks.common import fallen, robot_groups
 
 BALANCE_ROOT = (-0.1, 0.0, 1.38)
@@ -45,17 +47,27 @@ def balance_reward(
 
 class BalanceTask(Task):
     """Stand on the board. Terminates when the root z < 0.8, when the sphere touches anything but
-    the floor or the board, or when the floor touches anything but the sphere."""
+    the floor or the board, or when the floor touches anything but the sphere.
+
+    Args:
+      contact_rule: "query" (default): the sphere and floor rules test every robot geom, hands
+        included, exactly (`overlap`), plus the board against the floor; "contacts": MJX's
+        contact slots, where only the feet and legs can touch the sphere and the hands never
+        touch the floor.
+    """
 
     metric_names = ("standing", "upright", "small_control", "dont_move")
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, contact_rule: str = "query"):
         if name not in ("balance_simple", "balance_hard"):
             raise ValueError(
                 f"unknown balance task {name!r}; allowed: 'balance_simple', 'balance_hard'"
             )
+        if contact_rule not in ("query", "contacts"):
+            raise ValueError(f"contact_rule={contact_rule!r}; allowed: ('query', 'contacts')")
         self.name = name
         self.free_pivot = name == "balance_hard"
+        self.contact_rule = contact_rule
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         groups = robot_groups(variant)
@@ -66,15 +78,25 @@ class BalanceTask(Task):
         board = spec.worldbody.add_body(name="stand_board", pos=(0, 0, BOARD_Z))
         board.add_freejoint(name="free_stand_board")
         # Board: robot feet/legs, the floor (contype 1) and the pivot (BIT_OBJECT).
-        board.add_geom(name="stand_board_collision", type=mujoco.mjtGeom.mjGEOM_BOX,
-                       size=BOARD_HALF, contype=standing_on, conaffinity=1 | BIT_OBJECT,
-                       rgba=(0.7, 0.7, 0.7, 1))
+        board.add_geom(
+            name="stand_board_collision",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=BOARD_HALF,
+            contype=standing_on,
+            conaffinity=1 | BIT_OBJECT,
+            rgba=(0.7, 0.7, 0.7, 1),
+        )
         pivot = spec.worldbody.add_body(name="rolling_pivot", pos=(0, 0, PIVOT_Z))
         if self.free_pivot:
             pivot.add_freejoint(name="free_rolling_pivot")
-        pivot.add_geom(name="pivot_sphere_collision", type=mujoco.mjtGeom.mjGEOM_SPHERE,
-                       size=(PIVOT_RADIUS, 0, 0), contype=everything | BIT_OBJECT, conaffinity=1,
-                       rgba=(0.3, 0.3, 0.3, 1))
+        pivot.add_geom(
+            name="pivot_sphere_collision",
+            type=mujoco.mjtGeom.mjGEOM_SPHERE,
+            size=(PIVOT_RADIUS, 0, 0),
+            contype=everything | BIT_OBJECT,
+            conaffinity=1,
+            rgba=(0.3, 0.3, 0.3, 1),
+        )
         key = spec.keys[0]
         qpos = list(key.qpos)
         qpos[0:3] = BALANCE_ROOT
@@ -90,14 +112,21 @@ class BalanceTask(Task):
         self._not_sphere = ~self._sphere
         self._floor = jnp.asarray(geom_mask(model, [floor]))
         self._not_floor_board = ~jnp.asarray(geom_mask(model, [floor, board]))
+        robot_ids = np.concatenate(list(robot.geom_ids.values()))
+        self._model = model
+        self._robot_sphere = PairQuery(model, robot_ids, [sphere])
+        self._on_floor = np.concatenate([robot_ids, [board]])
+
+    def _bad_contact(self, data: mjx.Data) -> jax.Array:
+        if self.contact_rule == "query":
+            return self._robot_sphere.any(data) | below_floor(self._model, self._on_floor, data)
+        dist, geom = contact_arrays(data)
+        sphere_bad = R.any_contact(dist, geom, self._sphere, self._not_floor_board)
+        return sphere_bad | R.any_contact(dist, geom, self._floor, self._not_sphere)
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         reward, terms = balance_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             robot.com_velocity(data),
         )  # fmt: skip
-        dist, geom = contact_arrays(data)
-        sphere_bad = R.any_contact(dist, geom, self._sphere, self._not_floor_board)
-        floor_bad = R.any_contact(dist, geom, self._floor, self._not_sphere)
-        bad_contact = sphere_bad | floor_bad
-        return reward, fallen(data.qpos[2], 0.8) | bad_contact, task_state, terms
+        return reward, fallen(data.qpos[2], 0.8) | self._bad_contact(data), task_state, terms

@@ -1,8 +1,14 @@
 """Tasks with obstacles whose touch costs reward: hurdle, maze, pole (HumanoidBench §3).
 
-The penalties scan the MJX contact slots with geom-id masks and `dist < 0` (spec §9.8). Contact
-pairs are restricted per task: obstacles touch only the robot parts that can reach them, and
-`max_geom_pairs` lets MJX evaluate only the nearest candidate pairs of each collision function.
+Every robot collider, hands included, collides with the obstacles, as in HumanoidBench; the
+hands still do not touch the floor. `max_geom_pairs` lets MJX evaluate only the nearest
+candidate pairs of each collision function, so long walls are built from short segments: MJX
+ranks candidates by bounding spheres, and one 70 m wall would rank first whatever its distance.
+
+The 0.1 discount fires when any robot geom touches a penalised obstacle. `contact_rule="query"`
+(the default) asks `overlap.PairQuery` (an exact test of every robot-obstacle pair, once per
+control step); `"contacts"` scans MJX's contact slots instead, which miss what `max_geom_pairs`
+pruned and MJX's capsule-box edge misses (docs/tasks.md, contact parity).
 """
 
 from __future__ import annotations
@@ -15,7 +21,6 @@ from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
 from sirl_jax.envs.humanoid import (
-    ALL_GROUPS,
     Task,
     add_static_geom,
     contact_arrays,
@@ -23,10 +28,32 @@ from sirl_jax.envs.humanoid import (
     set_contact_bits,
     set_max_geom_pairs,
 )
+from sirl_jax.envs.overlap import PairQuery
 from sirl_jax.envs.tasks.common import fallen, robot_groups
 
 WALL_DISCOUNT = 0.1
 """Reward factor while touching a barrier / maze block / pole."""
+OBSTACLE_GROUPS = ("feet", "legs", "body", "arms", "hands")
+"""The robot groups that collide with the obstacles (all of them)."""
+CONTACT_RULES = ("query", "contacts")
+
+
+def add_segmented_box(
+    spec: mujoco.MjSpec, contype: int, name: str, pos, size, segment: float, **kwargs
+) -> list[str]:
+    """A static box cut along its longest axis into equal pieces no longer than `segment` (m);
+    returns the pieces' names (`{name}_{i}`). Same solid, bounding spheres MJX can rank."""
+    axis = int(np.argmax(size))
+    n = max(1, int(np.ceil(2 * size[axis] / segment)))
+    half = np.array(size, float)
+    half[axis] /= n
+    names = []
+    for i in range(n):
+        centre = np.array(pos, float)
+        centre[axis] += -size[axis] + (2 * i + 1) * half[axis]
+        names.append(f"{name}_{i}")
+        add_static_geom(spec, contype, pos=centre, size=half, name=names[-1], **kwargs)
+    return names
 
 
 def hurdle_reward(
@@ -136,15 +163,29 @@ def pole_reward(
 
 
 class _ContactTask(Task):
-    """A task whose reward is discounted while any robot part touches one of `_penalised` geoms."""
+    """A task whose reward is discounted while any robot geom touches a penalised obstacle.
+
+    Args:
+      contact_rule: "query" (exact test of every robot-obstacle pair) or "contacts" (MJX's
+        contact slots).
+    """
 
     _penalised_names: tuple[str, ...] = ()
+
+    def __init__(self, contact_rule: str = "query"):
+        if contact_rule not in CONTACT_RULES:
+            raise ValueError(f"contact_rule={contact_rule!r}; allowed: {CONTACT_RULES}")
+        self.contact_rule = contact_rule
 
     def bind(self, model, robot) -> None:
         ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in self._penalised_names]
         self._penalised = jnp.asarray(geom_mask(model, ids))
+        robot_ids = np.concatenate(list(robot.geom_ids.values()))
+        self._query = PairQuery(model, robot_ids, ids)
 
     def _touching(self, data: mjx.Data) -> jax.Array:
+        if self.contact_rule == "query":
+            return self._query.any(data)
         return R.any_contact(*contact_arrays(data), self._penalised)
 
 
@@ -153,26 +194,30 @@ class HurdleTask(_ContactTask):
 
     name = "hurdle"
     metric_names = ("standing", "upright", "small_control", "move", "wall_collision_discount")
-    _penalised_names = (
-        "left_barrier_collision", "right_barrier_collision", "behind_barrier_collision",
-    )  # fmt: skip
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        groups = robot_groups(variant)
-        low = set_contact_bits(spec, groups, ("feet", "legs"))
-        # The long barriers have huge bounding spheres, so MJX's broad phase always ranks their
-        # pairs first; touching only the body (pelvis, torso, head) keeps them to 3 per group.
-        high = set_contact_bits(spec, groups, ("body",))
+        bits = set_contact_bits(spec, robot_groups(variant), OBSTACLE_GROUPS)
         for k in range(1, 11):
-            add_static_geom(spec, low, pos=(7.0 * k, 0, 0.1875), size=(0.03, 5, 0.1875),
-                            name=f"hurdle_{k}", rgba=(0.9, 0.9, 0.9, 1))
+            add_segmented_box(
+                spec,
+                bits,
+                f"hurdle_{k}",
+                (7.0 * k, 0, 0.1875),
+                (0.03, 5, 0.1875),
+                1.0,
+                rgba=(0.9, 0.9, 0.9, 1),
+            )
         walls = (
-            ("left_barrier_collision", (35.0, -4.725, 1.0), (35.5, 0.275, 1.0)),
-            ("right_barrier_collision", (35.0, 4.725, 1.0), (35.5, 0.275, 1.0)),
-            ("behind_barrier_collision", (-0.525, 0.0, 1.0), (0.05, 5.0, 1.0)),
+            ("left_barrier_collision", (35.0, -4.725, 1.0), (35.5, 0.275, 1.0), 2.0),
+            ("right_barrier_collision", (35.0, 4.725, 1.0), (35.5, 0.275, 1.0), 2.0),
+            ("behind_barrier_collision", (-0.525, 0.0, 1.0), (0.05, 5.0, 1.0), 1.0),
         )
-        for name, pos, size in walls:
-            add_static_geom(spec, high, pos=pos, size=size, name=name, rgba=(0.1, 0.1, 0.1, 0.1))
+        names = []
+        for name, pos, size, segment in walls:
+            names += add_segmented_box(
+                spec, bits, name, pos, size, segment, rgba=(0.1, 0.1, 0.1, 0.1)
+            )
+        self._penalised_names = tuple(names)
         set_max_geom_pairs(spec, 6)
 
     def evaluate(self, robot, data: mjx.Data, task_state):
@@ -217,12 +262,18 @@ class MazeTask(_ContactTask):
     )  # fmt: skip
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        bits = set_contact_bits(spec, robot_groups(variant), ALL_GROUPS)
+        bits = set_contact_bits(spec, robot_groups(variant), OBSTACLE_GROUPS)
         names = []
         for r, c, x, y in maze_block_centres():
             names.append(f"block_collision_{r}{c}")
-            add_static_geom(spec, bits, pos=(x, y, 0.6), size=(0.75, 0.75, 0.6), name=names[-1],
-                            rgba=(0.4, 0.4, 0.4, 0.3))
+            add_static_geom(
+                spec,
+                bits,
+                pos=(x, y, 0.6),
+                size=(0.75, 0.75, 0.6),
+                name=names[-1],
+                rgba=(0.4, 0.4, 0.4, 0.3),
+            )
         self._penalised_names = tuple(names)
         set_max_geom_pairs(spec, 6)
 
@@ -259,23 +310,27 @@ class PoleTask(_ContactTask):
     metric_names = ("stand_reward", "small_control", "move", "collision_discount")
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        groups = robot_groups(variant)
-        bits = set_contact_bits(spec, groups, ALL_GROUPS)
+        bits = set_contact_bits(spec, robot_groups(variant), OBSTACLE_GROUPS)
         names = []
         for k, (x, y) in enumerate(pole_positions()):
             names.append(f"pole_r{int(x)}_c{k}")
             # HumanoidBench: cylinder r 0.05, z 0..2; MJX has no cylinder-box/mesh collision.
-            add_static_geom(spec, bits, mujoco.mjtGeom.mjGEOM_CAPSULE, name=names[-1],
-                            fromto=(x, y, 0.05, x, y, 1.95), size=(0.05, 0, 0),
-                            rgba=(0.5, 0.5, 0.5, 1))
+            add_static_geom(
+                spec,
+                bits,
+                mujoco.mjtGeom.mjGEOM_CAPSULE,
+                name=names[-1],
+                fromto=(x, y, 0.05, x, y, 1.95),
+                size=(0.05, 0, 0),
+                rgba=(0.5, 0.5, 0.5, 1),
+            )
         self._penalised_names = tuple(names)
-        body = set_contact_bits(spec, groups, ("body",))
-        for pos, size in (
-            ((20.0, -3.15, 1.0), (20.75, 0.15, 1.0)),
-            ((20.0, 3.15, 1.0), (20.75, 0.15, 1.0)),
-            ((-0.6, 0.0, 1.0), (0.15, 3.0, 1.0)),
+        for name, pos, size in (
+            ("pole_wall_left", (20.0, -3.15, 1.0), (20.75, 0.15, 1.0)),
+            ("pole_wall_right", (20.0, 3.15, 1.0), (20.75, 0.15, 1.0)),
+            ("pole_wall_behind", (-0.6, 0.0, 1.0), (0.15, 3.0, 1.0)),
         ):
-            add_static_geom(spec, body, pos=pos, size=size, rgba=(0.9, 0.9, 0.9, 0.2))
+            add_segmented_box(spec, bits, name, pos, size, 2.0, rgba=(0.9, 0.9, 0.9, 0.2))
         set_max_geom_pairs(spec, 6)
 
     def evaluate(self, robot, data: mjx.Data, task_state):
@@ -284,4 +339,3 @@ class PoleTask(_ContactTask):
             robot.com_velocity(data), self._touching(data),
         )  # fmt: skip
         return reward, fallen(data.qpos[2], 0.5), task_state, terms
-

@@ -1,0 +1,191 @@
+"""How far sirl_jax's primitive colliders are from HumanoidBench's, link by link.
+
+Both robots are posed at the same qpos (HumanoidBench's h1hand qpos0, which our body frames
+reproduce) and compared per body, in world coordinates, as the unions of each side's collision
+geoms (HumanoidBench: convex meshes, as MuJoCo collides them, i.e. their convex hulls, plus its
+primitives; sirl_jax: primitives). Two one-sided distances per link:
+
+- `hb_out`: the largest distance by which a point of HumanoidBench's collider surface lies
+  outside ours (the part of its collider we do not cover);
+- `ours_out`: the largest distance by which a point of our collider surface lies outside
+  HumanoidBench's (what we add).
+
+Distances to primitives are analytic; the distance of an outside point to a convex hull is
+the distance to the nearest of ~20,000 area-uniform samples of its surface (an upper bound,
+within about 1 mm for these link sizes). HumanoidBench's robot is read from a checkout:
+
+    .venv/bin/python -m experiments.collider_fit \
+        --hb-robot CHECKOUT/humanoid_bench/assets/robots/h1hand_pos.xml
+        [--tolerance 0.01] [--out docs/results/collider_fit.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from scipy.spatial import ConvexHull, cKDTree
+
+from sirl_jax.envs import h1
+
+G = mujoco.mjtGeom
+
+
+def _colliders(m: mujoco.MjModel) -> dict[str, list[int]]:
+    out: dict[str, list[int]] = {}
+    for g in range(m.ngeom):
+        if (m.geom_contype[g] or m.geom_conaffinity[g]) and m.geom_bodyid[g] != 0:
+            out.setdefault(m.body(m.geom_bodyid[g]).name, []).append(g)
+    return out
+
+
+def _local_sdf(gtype: int, size: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """[N] signed distance of local points p [N, 3] to a primitive."""
+    if gtype == G.mjGEOM_SPHERE:
+        return np.linalg.norm(p, axis=1) - size[0]
+    if gtype == G.mjGEOM_CAPSULE:
+        z = np.clip(p[:, 2], -size[1], size[1])
+        return np.linalg.norm(p - np.stack([0 * z, 0 * z, z], 1), axis=1) - size[0]
+    if gtype == G.mjGEOM_CYLINDER:
+        d = np.stack([np.linalg.norm(p[:, :2], axis=1) - size[0], np.abs(p[:, 2]) - size[1]], 1)
+        return np.linalg.norm(np.maximum(d, 0), axis=1) + np.minimum(d.max(1), 0)
+    if gtype == G.mjGEOM_BOX:
+        q = np.abs(p) - size
+        return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(1), 0)
+    raise ValueError(f"no analytic distance for geom type {gtype}")
+
+
+def _primitive_surface(gtype: int, size: np.ndarray, n: int, rng) -> np.ndarray:
+    """[~n, 3] local points on a primitive's surface (projected samples of its bounding box)."""
+    if gtype == G.mjGEOM_SPHERE:
+        v = rng.normal(size=(n, 3))
+        return size[0] * v / np.linalg.norm(v, axis=1, keepdims=True)
+    if gtype == G.mjGEOM_CAPSULE:
+        v = rng.normal(size=(n, 3))
+        v = size[0] * v / np.linalg.norm(v, axis=1, keepdims=True)
+        v[:, 2] += rng.uniform(-size[1], size[1], n)
+        keep = _local_sdf(gtype, size, v) > -1e-9  # points on the outer surface only
+        return v[keep]
+    if gtype in (G.mjGEOM_BOX, G.mjGEOM_CYLINDER):
+        half = size if gtype == G.mjGEOM_BOX else np.array([size[0], size[0], size[1]])
+        p = rng.uniform(-1, 1, (n, 3)) * half
+        if gtype == G.mjGEOM_BOX:
+            axis = rng.integers(0, 3, n)
+            p[np.arange(n), axis] = np.sign(rng.uniform(-1, 1, n)) * half[axis]
+            return p
+        side = rng.uniform(size=n) < 0.5
+        ang = rng.uniform(0, 2 * np.pi, n)
+        p[side, 0], p[side, 1] = size[0] * np.cos(ang[side]), size[0] * np.sin(ang[side])
+        p[~side, 2] = np.sign(rng.uniform(-1, 1, (~side).sum())) * size[1]
+        return p[(np.linalg.norm(p[:, :2], axis=1) <= size[0] + 1e-9)]
+    raise ValueError(f"no surface sampler for geom type {gtype}")
+
+
+class _Geom:
+    """One collision geom in world coordinates: signed distance and surface samples."""
+
+    def __init__(self, m: mujoco.MjModel, d: mujoco.MjData, g: int, rng, n: int = 20000):
+        self.type, self.size = int(m.geom_type[g]), m.geom_size[g].copy()
+        self.pos, self.mat = d.geom_xpos[g].copy(), d.geom_xmat[g].reshape(3, 3).copy()
+        if self.type == G.mjGEOM_MESH:
+            k = m.geom_dataid[g]
+            a, b = m.mesh_vertadr[k], m.mesh_vertadr[k] + m.mesh_vertnum[k]
+            hull = ConvexHull(m.mesh_vert[a:b].astype(np.float64))
+            self.planes = hull.equations  # [F, 4]: n.x + c <= 0 inside
+            tri = hull.points[hull.simplices]  # [F, 3, 3]
+            area = 0.5 * np.linalg.norm(
+                np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1
+            )
+            pick = rng.choice(len(tri), n, p=area / area.sum())
+            u, v = rng.uniform(size=(2, n))
+            flip = u + v > 1
+            u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+            t = tri[pick]
+            local = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
+            self.local_surface = np.concatenate([local, hull.points[hull.vertices]])
+            self._tree = cKDTree(self.local_surface)
+        else:
+            self.local_surface = _primitive_surface(self.type, self.size, n, rng)
+
+    def surface(self) -> np.ndarray:
+        return self.local_surface @ self.mat.T + self.pos
+
+    def outside(self, x: np.ndarray) -> np.ndarray:
+        """[N] distance of world points outside this geom (0 inside)."""
+        p = (x - self.pos) @ self.mat
+        if self.type == G.mjGEOM_MESH:
+            s = p @ self.planes[:, :3].T + self.planes[:, 3]
+            out = s.max(1) > 0
+            dist = np.zeros(len(p))
+            if out.any():
+                dist[out] = self._tree.query(p[out])[0]
+            return dist
+        return np.maximum(_local_sdf(self.type, self.size, p), 0.0)
+
+
+def _posed(model: mujoco.MjModel, qpos: np.ndarray) -> mujoco.MjData:
+    d = mujoco.MjData(model)
+    d.qpos[: len(qpos)] = qpos
+    mujoco.mj_kinematics(model, d)
+    return d
+
+
+def _describe(m: mujoco.MjModel, g: int) -> str:
+    return mujoco.mjtGeom(int(m.geom_type[g])).name[7:].lower()
+
+
+def compare(hb: mujoco.MjModel, ours: mujoco.MjModel, seed: int = 0) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    qpos = hb.qpos0[: ours.nq].copy()
+    d_hb, d_us = _posed(hb, qpos), _posed(ours, qpos)
+    col_hb, col_us = _colliders(hb), _colliders(ours)
+    rows = []
+    for body in sorted(set(col_hb) | set(col_us)):
+        g_hb = [_Geom(hb, d_hb, g, rng) for g in col_hb.get(body, [])]
+        g_us = [_Geom(ours, d_us, g, rng) for g in col_us.get(body, [])]
+        row = {
+            "body": body,
+            "hb": "+".join(sorted(_describe(hb, g) for g in col_hb.get(body, []))) or "-",
+            "ours": "+".join(sorted(_describe(ours, g) for g in col_us.get(body, []))) or "-",
+            "hb_out": None,
+            "ours_out": None,
+        }
+        if g_hb and g_us:
+            pts_hb = np.concatenate([g.surface() for g in g_hb])
+            pts_us = np.concatenate([g.surface() for g in g_us])
+            row["hb_out"] = float(np.min([g.outside(pts_hb) for g in g_us], axis=0).max())
+            row["ours_out"] = float(np.min([g.outside(pts_us) for g in g_hb], axis=0).max())
+        elif g_hb:  # a HumanoidBench collider we leave out: its extent
+            pts_hb = np.concatenate([g.surface() for g in g_hb])
+            row["hb_out"] = float(np.ptp(pts_hb, axis=0).max())
+        rows.append(row)
+    return rows
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--hb-robot", type=Path, required=True, help="HumanoidBench's h1hand_pos.xml")
+    p.add_argument("--tolerance", type=float, default=0.01, help="flag links off by more (m)")
+    p.add_argument("--out", type=Path, default=None)
+    args = p.parse_args(argv)
+    if not args.hb_robot.is_file():
+        raise SystemExit(f"error: --hb-robot {str(args.hb_robot)!r} is not a file")
+    hb = mujoco.MjModel.from_xml_path(str(args.hb_robot))
+    rows = compare(hb, h1.load_model("h1hand", "manipulation"))
+    print("| link | HumanoidBench | sirl_jax | HB outside ours (cm) | ours outside HB (cm) | |")
+    print("|---|---|---|---:|---:|---|")
+    for r in rows:
+        cm = ["-" if v is None else f"{100 * v:.1f}" for v in (r["hb_out"], r["ours_out"])]
+        worst = max(v for v in (r["hb_out"], r["ours_out"], 0.0) if v is not None)
+        flag = "off" if worst > args.tolerance else ""
+        print(f"| {r['body']} | {r['hb']} | {r['ours']} | {cm[0]} | {cm[1]} | {flag} |")
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(rows, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
