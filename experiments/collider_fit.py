@@ -8,7 +8,10 @@ primitives; sirl_jax: primitives). Two one-sided distances per link:
 - `hb_out`: the largest distance by which a point of HumanoidBench's collider surface lies
   outside ours (the part of its collider we do not cover);
 - `ours_out`: the largest distance by which a point of our collider surface lies outside
-  HumanoidBench's (what we add).
+  HumanoidBench's (what we add);
+- `hb_out_robot`: as `hb_out`, against the union of all our colliders (a link we give no
+  collider of its own may be covered by its neighbours'). For a link without a collider of
+  ours, `hb_out` is the extent of HumanoidBench's.
 
 Distances to primitives are analytic; the distance of an outside point to a convex hull is
 the distance to the nearest of ~20,000 area-uniform samples of its surface (an upper bound,
@@ -142,6 +145,7 @@ def compare(hb: mujoco.MjModel, ours: mujoco.MjModel, seed: int = 0) -> list[dic
     qpos = hb.qpos0[: ours.nq].copy()
     d_hb, d_us = _posed(hb, qpos), _posed(ours, qpos)
     col_hb, col_us = _colliders(hb), _colliders(ours)
+    every = [_Geom(ours, d_us, g, rng, n=200) for ids in col_us.values() for g in ids]
     rows = []
     for body in sorted(set(col_hb) | set(col_us)):
         g_hb = [_Geom(hb, d_hb, g, rng) for g in col_hb.get(body, [])]
@@ -152,6 +156,7 @@ def compare(hb: mujoco.MjModel, ours: mujoco.MjModel, seed: int = 0) -> list[dic
             "ours": "+".join(sorted(_describe(ours, g) for g in col_us.get(body, []))) or "-",
             "hb_out": None,
             "ours_out": None,
+            "hb_out_robot": None,
         }
         if g_hb and g_us:
             pts_hb = np.concatenate([g.surface() for g in g_hb])
@@ -161,6 +166,8 @@ def compare(hb: mujoco.MjModel, ours: mujoco.MjModel, seed: int = 0) -> list[dic
         elif g_hb:  # a HumanoidBench collider we leave out: its extent
             pts_hb = np.concatenate([g.surface() for g in g_hb])
             row["hb_out"] = float(np.ptp(pts_hb, axis=0).max())
+        if g_hb:  # outside every collider of ours, whichever link holds it
+            row["hb_out_robot"] = float(np.min([g.outside(pts_hb) for g in every], axis=0).max())
         rows.append(row)
     return rows
 
@@ -170,21 +177,97 @@ def main(argv=None) -> None:
     p.add_argument("--hb-robot", type=Path, required=True, help="HumanoidBench's h1hand_pos.xml")
     p.add_argument("--tolerance", type=float, default=0.01, help="flag links off by more (m)")
     p.add_argument("--out", type=Path, default=None)
+    p.add_argument("--refit", action="store_true", help="print refitted single-capsule links")
     args = p.parse_args(argv)
     if not args.hb_robot.is_file():
         raise SystemExit(f"error: --hb-robot {str(args.hb_robot)!r} is not a file")
     hb = mujoco.MjModel.from_xml_path(str(args.hb_robot))
+    if args.refit:
+        for row in refit(hb, h1.load_model("h1hand", "manipulation")):
+            print(json.dumps(row))
+        return
     rows = compare(hb, h1.load_model("h1hand", "manipulation"))
-    print("| link | HumanoidBench | sirl_jax | HB outside ours (cm) | ours outside HB (cm) | |")
-    print("|---|---|---|---:|---:|---|")
+    print("| link | HumanoidBench | sirl_jax | HB outside ours (cm) | ours outside HB (cm) "
+          "| HB outside all of ours (cm) | |")  # fmt: skip
+    print("|---|---|---|---:|---:|---:|---|")
     for r in rows:
-        cm = ["-" if v is None else f"{100 * v:.1f}" for v in (r["hb_out"], r["ours_out"])]
+        keys = ("hb_out", "ours_out", "hb_out_robot")
+        cm = ["-" if r[k] is None else f"{100 * r[k]:.1f}" for k in keys]
         worst = max(v for v in (r["hb_out"], r["ours_out"], 0.0) if v is not None)
         flag = "off" if worst > args.tolerance else ""
-        print(f"| {r['body']} | {r['hb']} | {r['ours']} | {cm[0]} | {cm[1]} | {flag} |")
+        print(f"| {r['body']} | {r['hb']} | {r['ours']} | {' | '.join(cm)} | {flag} |")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(rows, indent=1) + "\n")
+
+
+
+def _hull_points(geoms: list[_Geom]) -> tuple[np.ndarray, list[np.ndarray]]:
+    """(world vertices of HumanoidBench's hulls [V, 3], world plane equations per hull)."""
+    verts, planes = [], []
+    for g in geoms:
+        if g.type != G.mjGEOM_MESH:
+            raise ValueError("refit needs a mesh collider")
+        verts.append(g.surface())
+        n = g.planes[:, :3] @ g.mat.T
+        planes.append(np.concatenate([n, (g.planes[:, 3] - n @ g.pos)[:, None]], 1))
+    return np.concatenate(verts), planes
+
+
+def fit_capsule(verts: np.ndarray, planes: list[np.ndarray], seed: int = 0):
+    """(a [3], b [3], r) of the capsule minimising max(HB outside it, it outside HB), world
+    frame; Nelder-Mead from the principal axis of the hull vertices."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(seed)
+    unit = rng.normal(size=(600, 3))
+    unit /= np.linalg.norm(unit, axis=1, keepdims=True)
+    t = rng.uniform(0, 1, 600)
+    sub = verts[rng.choice(len(verts), min(len(verts), 3000), replace=False)]
+    centre = sub.mean(0)
+    axis = np.linalg.svd(sub - centre)[2][0]
+    proj = (sub - centre) @ axis
+    radial = np.linalg.norm(sub - centre - np.outer(proj, axis), axis=1)
+    r0 = np.percentile(radial, 75)
+    x0 = np.r_[centre + axis * (proj.min() + r0), centre + axis * (proj.max() - r0), r0]
+
+    def cost(x):
+        a, b, r = x[:3], x[3:6], abs(x[6])
+        ab = b - a
+        s = np.clip((sub - a) @ ab / max(ab @ ab, 1e-12), 0, 1)
+        hb_out = np.maximum(np.linalg.norm(sub - a - s[:, None] * ab, axis=1) - r, 0).max()
+        surf = a + t[:, None] * ab + r * unit
+        out = np.min([np.maximum((surf @ p[:, :3].T + p[:, 3]).max(1), 0) for p in planes], 0)
+        return max(hb_out, out.max())
+
+    res = minimize(cost, x0, method="Nelder-Mead",
+                   options={"maxiter": 4000, "xatol": 1e-4, "fatol": 1e-5})  # fmt: skip
+    return res.x[:3], res.x[3:6], abs(res.x[6]), cost(x0), res.fun
+
+
+def refit(hb: mujoco.MjModel, ours: mujoco.MjModel, seed: int = 0) -> list[dict]:
+    """Per body whose HumanoidBench collider is meshes and ours one capsule: the refitted
+    capsule in our body frame (fromto, radius) and its fit cost before and after (m)."""
+    rng = np.random.default_rng(seed)
+    qpos = hb.qpos0[: ours.nq].copy()
+    d_hb, d_us = _posed(hb, qpos), _posed(ours, qpos)
+    col_hb, col_us = _colliders(hb), _colliders(ours)
+    out = []
+    for body, ids in sorted(col_us.items()):
+        if len(ids) != 1 or ours.geom_type[ids[0]] != G.mjGEOM_CAPSULE or body not in col_hb:
+            continue
+        hb_geoms = [_Geom(hb, d_hb, g, rng) for g in col_hb[body]]
+        if any(g.type != G.mjGEOM_MESH for g in hb_geoms):
+            continue
+        verts, planes = _hull_points(hb_geoms)
+        a, b, r, before, after = fit_capsule(verts, planes, seed)
+        b_id = ours.body(body).id
+        pos, mat = d_us.xpos[b_id], d_us.xmat[b_id].reshape(3, 3)
+        local = [(p - pos) @ mat for p in (a, b)]
+        out.append({"body": body, "geom": ours.geom(ids[0]).name, "radius": round(float(r), 4),
+                    "fromto": [round(float(v), 4) for v in np.concatenate(local)],
+                    "cost_pca": float(before), "cost_fit": float(after)})  # fmt: skip
+    return out
 
 
 if __name__ == "__main__":
