@@ -169,9 +169,20 @@ def test_h1hand_contract_obs_layout_reward_and_termination_match_the_env(tmp_pat
                                atol=1e-5)  # fmt: skip
     for _ in range(h1.N_SUBSTEPS):
         mujoco.mj_step(model, data)
-    reward, done, _, _ = env.task.evaluate(env.robot, mjx.put_data(model, data), ())
+    d = mjx.put_data(model, data)
+    reward, done, _, _ = env.task.evaluate(env.robot, d, ())
     assert abs(S.reward(contract, model, data, action) - float(reward)) < 1e-5
     assert S.terminated(contract, model, data) == bool(done)
+    from sirl_jax.envs.tasks.basic import walk_reward
+
+    r, vx = env.robot, model.sensor("pelvis_subtreelinvel").adr[0]
+    for speed in (1.0, 5.0):  # walk and run: the move branch, v_x inside the margin
+        data.sensordata[vx] = speed - 0.3
+        d = mjx.put_data(model, data)
+        want, _ = walk_reward(r.head_height(d), r.torso_upright(d), r.actuator_forces(d),
+                              r.com_velocity(d), speed)  # fmt: skip
+        moving = {**contract, "reward": {**contract["reward"], "speed": speed}}
+        assert abs(S.reward(moving, model, data, action) - float(want)) < 1e-5
 
 
 @pytest.mark.timeout(300)
