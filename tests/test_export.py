@@ -235,6 +235,10 @@ def test_export_refusals_are_one_line(exported, tmp_path, capsys, monkeypatch):
     capsys.readouterr()
     assert cli.main(["export", str(bare)]) == 2
     assert "has no checkpoint: nothing to export" in _one_error_line(capsys)
+    assert sorted(p.name for p in bare.iterdir()) == ["config.json"]
+    (bare / "checkpoints").mkdir()
+    assert cli.main(["export", str(bare)]) == 2
+    assert "has no checkpoint: nothing to export" in _one_error_line(capsys)
     assert cli.main(["export", str(run), "--step", "123", "--out", str(tmp_path / "x")]) == 2
     assert "--step 123: no checkpoint at that env step; available: [650]" in _one_error_line(
         capsys)  # fmt: skip
@@ -249,3 +253,20 @@ def test_export_refusals_are_one_line(exported, tmp_path, capsys, monkeypatch):
     line = _one_error_line(capsys)
     assert "observes 4 entries" in line and "the task's obs is not the policy's" in line
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
+@pytest.mark.timeout(120)
+def test_sim2sim_refusals_are_one_line(exported, tmp_path, capsys):
+    _, out, _, _ = exported
+    capsys.readouterr()
+    assert cli.main(["sim2sim", str(tmp_path)]) == 2
+    assert "is not an export directory (no contract.json)" in _one_error_line(capsys)
+    assert cli.main(["sim2sim", str(out), "--episodes", "0"]) == 2
+    assert "--episodes=0 is invalid" in _one_error_line(capsys)
+    tampered = tmp_path / "tampered"
+    shutil.copytree(out, tampered)
+    blob = bytearray((tampered / "model.mjb").read_bytes())
+    blob[-1] ^= 1
+    (tampered / "model.mjb").write_bytes(bytes(blob))
+    assert cli.main(["sim2sim", str(tampered), "--no-mjx"]) == 2
+    assert "model.mjb does not match the SHA-256 in contract.json" in _one_error_line(capsys)

@@ -113,9 +113,11 @@ def export_run(run_dir: Path, step: int | None, out: Path | None, force: bool) -
     if not run_dir.is_dir():
         raise UsageError(f"run directory {run_dir} does not exist")
     config = runlog.load_config(run_dir)
+    if not (run_dir / "checkpoints").is_dir():  # before Checkpointer, which would create it
+        raise UsageError(f"{run_dir} has no checkpoint: nothing to export")
     ckpt = Checkpointer(run_dir / "checkpoints")
     try:
-        available = ckpt.steps() if (run_dir / "checkpoints").is_dir() else []
+        available = ckpt.steps()
         if not available:
             raise UsageError(f"{run_dir} has no checkpoint: nothing to export")
         if step is not None and step not in available:

@@ -129,13 +129,10 @@ def parted_at(a: np.ndarray, b: np.ndarray) -> int | None:
 def sim2sim(export_dir: Path, episodes: int, policy: str, max_steps: int | None, seed: int,
             mjx: bool = True) -> dict:  # fmt: skip
     """Runs both sides; prints a table; returns the figures (per episode and means)."""
-    try:
-        contract = S.read_contract(export_dir)
-        model = S.load_model(export_dir, contract)
-        rng = np.random.default_rng(seed)
-        initial = [S.sample_initial(contract, model, rng) for _ in range(episodes)]
-    except S.ContractError as e:
-        raise UsageError(str(e)) from e
+    contract = S.read_contract(export_dir)
+    model = S.load_model(export_dir, contract)
+    rng = np.random.default_rng(seed)
+    initial = [S.sample_initial(contract, model, rng) for _ in range(episodes)]
     T = contract["task"]["episode_length"] if max_steps is None else max_steps
     cpu = cpu_episodes(export_dir, contract, policy, initial, T, seed)
     ref = mjx_episodes(export_dir, contract, policy, initial, T, seed) if mjx else None
@@ -208,8 +205,11 @@ def main_sim2sim(args) -> int:
         raise UsageError(f"--policy {args.policy!r} is invalid; allowed: {', '.join(POLICIES)}")
     if not Path(args.export).is_dir():
         raise UsageError(f"export directory {args.export} does not exist")
-    result = sim2sim(Path(args.export), args.episodes, args.policy, args.max_steps, args.seed,
-                     args.mjx)  # fmt: skip
+    try:
+        result = sim2sim(Path(args.export), args.episodes, args.policy, args.max_steps,
+                         args.seed, args.mjx)  # fmt: skip
+    except S.ContractError as e:
+        raise UsageError(str(e)) from e
     if args.json is not None:
         Path(args.json).write_text(json.dumps(result, indent=1) + "\n")
     return 0
