@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 import sys
 from pathlib import Path
 
@@ -106,6 +107,9 @@ def export_run(run_dir: Path, step: int | None, out: Path | None, force: bool) -
     except ImportError as e:
         raise UsageError(f"export needs jax2onnx ({e}); install it with `make install` "
                          "(pip install --no-deps jax2onnx==0.17.1, see pyproject.toml)") from e
+    # onnx_ir warns about shape-only intermediate values it leaves out of the file (the model
+    # loads and runs: tests/test_export.py); the warnings say nothing to a user of the export.
+    logging.getLogger("onnx_ir.serde").setLevel(logging.ERROR)
     from sirl_jax.agent import make_agent
     from sirl_jax.run.runner import load_task
     from sirl_jax.train import make_train
