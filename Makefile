@@ -6,6 +6,8 @@ STAMP  := $(VENV)/.installed
 TASK   ?= hurdle
 ARGS   ?=
 PYTEST_ARGS ?=
+# The ONNX converter of `export`, without its deps (pyproject.toml, extra `export`, says why).
+JAX2ONNX := jax2onnx==0.17.1
 
 .PHONY: install test test-slow lint bench train clean
 
@@ -15,6 +17,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet --no-deps $(JAX2ONNX)
 	touch $(STAMP)
 
 test: $(STAMP)

@@ -266,6 +266,12 @@ class Checkpointer:
         meta.pop(_SHAPES, None)
         return meta
 
+    def leaf_shapes(self, step: int, item: str) -> dict[str, tuple[int, ...]]:
+        """Leaf name (without its index) -> saved shape, for one item of checkpoint `step`."""
+        meta = self._read_meta(step)
+        names, shapes = meta.get(_LAYOUT, {}).get(item, []), meta.get(_SHAPES, {}).get(item, [])
+        return {n.split("_", 1)[1]: tuple(s) for n, s in zip(names, shapes, strict=False)}
+
     def restore(self, targets: Mapping[str, Any], step: int | None = None) -> dict[str, Any]:
         """Restores items of checkpoint `step` (default: latest) into the shapes of `targets`.
 

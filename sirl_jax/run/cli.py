@@ -1,4 +1,4 @@
-"""The shell: `python -m sirl_jax {train,tasks,eval}` (see docs/cli.md).
+"""The shell: `python -m sirl_jax {train,tasks,eval,render,plot,export,sim2sim}` (docs/cli.md).
 
 This module parses argv and dispatches; the run loop is `runner.py`. `train` turns the `Config`
 dataclass tree into flags with tyro (`--agent.horizon 3`, `--train.num-envs 4`: every field is
@@ -24,6 +24,7 @@ import tyro
 from sirl_jax.config import Config, TrainConfig, check_resume, fit_to_task
 from sirl_jax.presets import PRESETS
 from sirl_jax.run import runlog
+from sirl_jax.run.args import EvalArgs, ExportArgs, PlotArgs, RenderArgs, Sim2simArgs
 from sirl_jax.run.checkpoint import CheckpointError
 from sirl_jax.run.errors import TrainingFailure, UsageError
 
@@ -84,56 +85,6 @@ class TrainArgs:
     """W&B project name."""
     devices: int = 1
     """Split the envs, replay buffer and batch over this many local devices (one learner)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class EvalArgs:
-    """Evaluate every checkpoint of a run (or one): planner and policy prior in eval mode, N
-    episodes each in parallel, plus the random policy; rows go to RUN_DIR/eval/*.csv."""
-
-    run: tyro.conf.Positional[str]
-    """The run directory."""
-    step: int | None = None
-    """Evaluate only the checkpoint at this env step."""
-    episodes: int = 10
-    """Episodes per checkpoint, run in parallel (the official TD-MPC2 evaluation: 10)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class RenderArgs:
-    """Write an mp4 of a run's policy (or a random one): MJX rollout, MuJoCo drawing, 50 fps."""
-
-    run: tyro.conf.Positional[str | None] = None
-    """The run directory (omit with --random --task NAME)."""
-    step: int | None = None
-    """The checkpoint (env step); default: the latest."""
-    episodes: int = 2
-    """Episodes, rolled out in parallel and written one after the other."""
-    policy: str = "planner"
-    """planner (MPPI, eval mode) | prior (the policy prior's mean action)."""
-    random: bool = False
-    """Uniform random actions instead of a run's policy (no run needed)."""
-    task: str | None = None
-    """With --random: the task to render (any registered name)."""
-    out: str | None = None
-    """The mp4 to write (default: <run>-<step>-<policy>.mp4 or <task>-random.mp4)."""
-    max_steps: int | None = None
-    """Stop each episode after this many control steps (default: the task's T)."""
-    width: int = 640
-    height: int = 480
-    shadows: bool = True
-    """--no-shadows: skip shadows and reflections (about 3.4x faster without a GPU)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class PlotArgs:
-    """Plot runs: eval-return curves (seeds of one config as mean ± std), R_max vs return, and
-    normalised scores when the runs cover several tasks."""
-
-    runs: tyro.conf.Positional[tuple[str, ...]]
-    """Run directories."""
-    out: str = "plot.png"
-    """The PNG to write."""
 
 
 # ---------------------------------------------------------------- parsing
@@ -273,6 +224,20 @@ def plot(args: PlotArgs) -> int:
     return EXIT_OK
 
 
+def export(args: ExportArgs) -> int:
+    """The `export` command (`export.export_run`)."""
+    from sirl_jax.run.export import main_export
+
+    return main_export(args)
+
+
+def sim2sim(args: Sim2simArgs) -> int:
+    """The `sim2sim` command (`sim2sim.sim2sim`)."""
+    from sirl_jax.run.sim2sim import main_sim2sim
+
+    return main_sim2sim(args)
+
+
 def tasks() -> int:
     """The `tasks` command: one line per registered task."""
     from sirl_jax.run.runner import print_tasks
@@ -281,7 +246,7 @@ def tasks() -> int:
     return EXIT_OK
 
 
-USAGE = """usage: python -m sirl_jax {train,tasks,eval,render,plot} [flags]
+USAGE = """usage: python -m sirl_jax {train,tasks,eval,render,plot,export,sim2sim} [flags]
 
   train  python -m sirl_jax train --task hurdle [--seed 1 --steps 1000000 --num-envs 4 ...]
          --preset smoke: a CPU-sized run; --resume RUN_DIR: continue; --help: every flag
@@ -290,6 +255,10 @@ USAGE = """usage: python -m sirl_jax {train,tasks,eval,render,plot} [flags]
   render python -m sirl_jax render RUN_DIR [--policy planner|prior] [--out FILE.mp4], or
          render --random --task NAME: an mp4 of the policy (headless)
   plot   python -m sirl_jax plot RUN_DIR... [--out FILE.png]: curves, R_max, scores
+  export python -m sirl_jax export RUN_DIR [--step N] [--out DIR]: ONNX policy, planner,
+         params, scene model and observation/action contract
+  sim2sim python -m sirl_jax sim2sim EXPORT_DIR [--episodes 5] [--policy prior|planner]:
+         the export in CPU MuJoCo through its contract, against MJX
 """
 
 
@@ -308,9 +277,12 @@ def _dispatch(argv: list[str]) -> int:
         return render(tyro.cli(RenderArgs, args=rest, prog="python -m sirl_jax render"))
     if command == "plot":
         return plot(tyro.cli(PlotArgs, args=rest, prog="python -m sirl_jax plot"))
-    raise UsageError(
-        f"unknown command {command!r}; valid commands: train, tasks, eval, render, plot"
-    )
+    if command == "export":
+        return export(tyro.cli(ExportArgs, args=rest, prog="python -m sirl_jax export"))
+    if command == "sim2sim":
+        return sim2sim(tyro.cli(Sim2simArgs, args=rest, prog="python -m sirl_jax sim2sim"))
+    raise UsageError(f"unknown command {command!r}; valid commands: train, tasks, eval, render, "
+                     "plot, export, sim2sim")  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -345,5 +317,6 @@ def run() -> None:
     raise SystemExit(code)
 
 
-__all__ = ["SHORT_FLAGS", "EvalArgs", "PlotArgs", "RenderArgs", "TrainArgs", "TrainingFailure",
-           "UsageError", "main", "parse_train_args", "run"]  # fmt: skip
+__all__ = ["SHORT_FLAGS", "EvalArgs", "ExportArgs", "PlotArgs", "RenderArgs", "Sim2simArgs",
+           "TrainArgs", "TrainingFailure", "UsageError", "main", "parse_train_args",
+           "run"]  # fmt: skip

@@ -1,0 +1,95 @@
+"""The tyro argument dataclasses of the commands other than `train` (`cli.TrainArgs`).
+
+`cli.py` parses argv with them and dispatches; each command's body lives in its own module.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import tyro
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalArgs:
+    """Evaluate every checkpoint of a run (or one): planner and policy prior in eval mode, N
+    episodes each in parallel, plus the random policy; rows go to RUN_DIR/eval/*.csv."""
+
+    run: tyro.conf.Positional[str]
+    """The run directory."""
+    step: int | None = None
+    """Evaluate only the checkpoint at this env step."""
+    episodes: int = 10
+    """Episodes per checkpoint, run in parallel (the official TD-MPC2 evaluation: 10)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RenderArgs:
+    """Write an mp4 of a run's policy (or a random one): MJX rollout, MuJoCo drawing, 50 fps."""
+
+    run: tyro.conf.Positional[str | None] = None
+    """The run directory (omit with --random --task NAME)."""
+    step: int | None = None
+    """The checkpoint (env step); default: the latest."""
+    episodes: int = 2
+    """Episodes, rolled out in parallel and written one after the other."""
+    policy: str = "planner"
+    """planner (MPPI, eval mode) | prior (the policy prior's mean action)."""
+    random: bool = False
+    """Uniform random actions instead of a run's policy (no run needed)."""
+    task: str | None = None
+    """With --random: the task to render (any registered name)."""
+    out: str | None = None
+    """The mp4 to write (default: <run>-<step>-<policy>.mp4 or <task>-random.mp4)."""
+    max_steps: int | None = None
+    """Stop each episode after this many control steps (default: the task's T)."""
+    width: int = 640
+    height: int = 480
+    shadows: bool = True
+    """--no-shadows: skip shadows and reflections (about 3.4x faster without a GPU)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PlotArgs:
+    """Plot runs: eval-return curves (seeds of one config as mean ± std), R_max vs return, and
+    normalised scores when the runs cover several tasks."""
+
+    runs: tyro.conf.Positional[tuple[str, ...]]
+    """Run directories."""
+    out: str = "plot.png"
+    """The PNG to write."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ExportArgs:
+    """Export a checkpoint's policy prior (ONNX), MPPI planner (jax.export), params, scene
+    model and observation/action contract to a directory (docs/cli.md)."""
+
+    run: tyro.conf.Positional[str]
+    """The run directory."""
+    step: int | None = None
+    """The checkpoint (env step); default: the latest."""
+    out: str | None = None
+    """The export directory (default: RUN_DIR/export-<step>); must not exist."""
+    force: bool = False
+    """Write over the files of an existing export directory."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Sim2simArgs:
+    """Drive CPU MuJoCo with an export through its contract alone, and compare with MJX."""
+
+    export: tyro.conf.Positional[str]
+    """The export directory (from `export`)."""
+    episodes: int = 5
+    """Episodes, each from the same initial state on both sides."""
+    policy: str = "prior"
+    """prior (policy.onnx on onnxruntime) | planner (planner.jax, eval mode)."""
+    max_steps: int | None = None
+    """Stop each episode after this many control steps (default: the task's T)."""
+    seed: int = 0
+    """Seed of the initial states (numpy) and the planner keys."""
+    mjx: bool = True
+    """--no-mjx: the CPU MuJoCo side only."""
+    json: str | None = None
+    """Also write the figures to this JSON file."""
