@@ -86,8 +86,10 @@ def main(argv=None) -> None:
     c, x = contacts(random_poses(args.poses, args.seed))
     hit = c < 0
     miss = hit & (x >= 0)
+    share = 100 * miss.sum() / max(hit.sum(), 1)
+    extra = ((x < 0) & ~hit).sum()
     print(f"random poses: {args.poses}, C contacts {hit.sum()}, MJX misses {miss.sum()} "
-          f"({100 * miss.sum() / max(hit.sum(), 1):.2f}%), MJX extra {((x < 0) & ~hit).sum()}")  # fmt: skip
+          f"({share:.2f}%), MJX extra {extra}")  # fmt: skip
     if miss.any():
         print(f"missed depths (m): max {-c[miss].min():.4f}, median {-np.median(c[miss]):.4f}")
 

@@ -19,7 +19,13 @@ import pytest
 from mujoco import mjx
 
 from sirl_jax.envs.humanoid import HumanoidEnv
-from sirl_jax.envs.tasks.obstacles import WALL_DISCOUNT, HurdleTask, MazeTask, PoleTask
+from sirl_jax.envs.tasks.obstacles import (
+    WALL_DISCOUNT,
+    HurdleTask,
+    MazeTask,
+    PoleTask,
+    add_segmented_box,
+)
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -130,3 +136,20 @@ def test_thigh_inside_a_maze_block_is_a_contact(task):
     assert dist == pytest.approx(-DEPTH, abs=1e-3)
     value = discount(mjx.put_model(m), jnp.asarray(qpos, jnp.float32))
     assert float(value) == pytest.approx(WALL_DISCOUNT)
+
+
+def test_segmented_walls_tile_the_barrier():
+    """A 71 m barrier cut into 15 pieces of at most 5 m: the same solid (end to end, no gap or
+    overlap, the other sizes kept), each with a bounding sphere MJX can rank."""
+    spec = mujoco.MjSpec()
+    names = add_segmented_box(spec, 1, "wall", (35.0, -4.725, 1.0), (35.5, 0.275, 1.0), 5.0)
+    m = spec.compile()
+    assert len(names) == 15 and all(m.geom(n).id >= 0 for n in names)
+    lo = np.array([m.geom(n).pos[0] - m.geom(n).size[0] for n in names])
+    hi = np.array([m.geom(n).pos[0] + m.geom(n).size[0] for n in names])
+    assert lo[0] == pytest.approx(-0.5) and hi[-1] == pytest.approx(70.5)
+    np.testing.assert_allclose(lo[1:], hi[:-1], atol=1e-9)
+    for n in names:
+        np.testing.assert_allclose(m.geom(n).size[1:], (0.275, 1.0))
+        np.testing.assert_allclose(m.geom(n).pos[1:], (-4.725, 1.0))
+    assert m.geom_rbound.max() < 2.7  # the whole barrier's would be 35.5
