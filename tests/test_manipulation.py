@@ -26,6 +26,7 @@ from sirl_jax.envs.base import VecEnv
 from sirl_jax.envs.tasks import manip
 from sirl_jax.envs.tasks.basketball import CATCH, THROW, basketball_reward, throw_state
 from sirl_jax.envs.tasks.cube import cube_reward, cube_terminated
+from sirl_jax.envs.tasks.package import package_reward
 from sirl_jax.envs.tasks.powerlift import powerlift_reward
 from sirl_jax.envs.tasks.push import push_reward
 
@@ -39,10 +40,12 @@ HB = {
     "cube": (500, 370, 181, 90, 87),
     "powerlift": (1000, 800, 164, 83, 81),
     "basketball": (500, 1200, 164, 83, 81),
+    "package": (1000, 1500, 173, 83, 81),
 }
 NAMES = [row.name for row in tasks.MANIPULATION]
 CI_IDS = ("h1hand-push-v0", "h1hand-cube-v0")
 ROOT_Z_TERMINATION = {"powerlift": 0.2}
+ONLY_SUCCESS_ENDS = ("push", "package")
 
 
 def _param(task_id: str):
@@ -109,6 +112,30 @@ def test_push_reward_at_and_away_from_goal():
     r, success, _ = push_reward(goal, goal + jnp.array([0.0, 0.06, 0.0]), goal)
     close(r, -0.006 - 0.06)
     assert not bool(success)
+
+
+def test_package_reward():
+    head, zz, force, _ = _standing_robot()
+    dest = jnp.array([1.0, -1.0, 0.35])
+    package = jnp.array([1.3, -1.4, 0.35])  # 0.5 from the destination
+    hands = package + jnp.array([[0.0, 0.3, 0.4], [0.0, 0.0, -0.2]])  # 0.5 and 0.2
+    r, success, terms = package_reward(head, zz, force, package, dest, hands)
+    close(r, 1.0 - 1.5 - 0.07 + 0.35)
+    assert not bool(success)
+    # lifted above 1 m: height capped at 1; within 0.1 of the destination: + 1000, terminates
+    package = dest + jnp.array([0.0, 0.0, 0.09])
+    r, success, terms = package_reward(head, zz, force, package, dest, hands)
+    close(terms["package_height"], 0.44)
+    assert bool(success)
+    hand_sum = float(jnp.sum(jnp.linalg.norm(hands - package, axis=-1)))
+    close(r, 1.0 - 0.27 - 0.1 * hand_sum + 0.44 + 1000.0)
+    package = jnp.array([1.0, -1.0, 1.6])
+    _, success, terms = package_reward(head, zz, force, package, dest, hands)
+    close(terms["package_height"], 1.0)
+    assert not bool(success)
+    # upright bound 0.8: zz 0.8 -> 1
+    _, _, terms = package_reward(head, jnp.asarray(0.8), force, package, dest, hands)
+    close(terms["stand_reward"], 1.0)
 
 
 def _standing_robot():
@@ -380,11 +407,12 @@ def test_rollout(task_id):
     _check_bookkeeping(limp)
     assert not hold["terminated"].any()
     assert hold["truncated"][EPISODE - 1].all() and not hold["truncated"][: EPISODE - 1].any()
-    if name == "push":  # only success ends push: the limp robot collapses, the box stays put
+    if name in ONLY_SUCCESS_ENDS:  # the limp robot collapses; the object stays put
         assert not limp["terminated"].any() and limp["truncated"][EPISODE - 1].all()
+    if name == "push":
         box = limp["final_obs"][: EPISODE - 1, :, -6:-3]
         assert (box[..., 2] > 0.97).all() and (box[..., 2] < 1.03).all()  # on the table
-    else:  # the collapse drops the cubes / brings the root down
+    if name not in ONLY_SUCCESS_ENDS:  # the collapse drops the objects / brings the root down
         assert limp["terminated"].any(axis=0).all()
     if name in ROOT_Z_TERMINATION:
         for trace in (hold, limp):

@@ -20,6 +20,7 @@ from sirl_jax.envs.tasks.basic import CrawlTask, ReachTask, WalkTask
 from sirl_jax.envs.tasks.basketball import BasketballTask
 from sirl_jax.envs.tasks.cube import CubeTask
 from sirl_jax.envs.tasks.obstacles import HurdleTask, MazeTask, PoleTask
+from sirl_jax.envs.tasks.package import PackageTask
 from sirl_jax.envs.tasks.powerlift import PowerliftTask
 from sirl_jax.envs.tasks.push import PushTask
 from sirl_jax.envs.tasks.sit import SitTask
@@ -72,6 +73,7 @@ MANIPULATION = (
         "basketball", BasketballTask, 1200,
         "ball z < 0.5, root z < 0.5, or the ball within 0.05 of the hoop", 500,
     ),
+    Locomotion("package", PackageTask, 1500, "package within 0.1 of the destination"),
 )
 """The manipulation tasks built so far (h1hand only), in HumanoidBench's units: obs sizes, episode
 lengths and success bars of spec §1."""
