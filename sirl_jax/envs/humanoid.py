@@ -1,6 +1,8 @@
 """The generic H1 task environment: one MJX model (robot + task scene) and a `Task` that scores it.
 
-`HumanoidEnv` implements the `Env` contract for every HumanoidBench locomotion task:
+`HumanoidEnv` implements the `Env` contract for every HumanoidBench task (locomotion and
+manipulation; a `Task` may change the contact profile, the reset-noise scale, the observation's
+state part and the reset state after its kinematics, see the `Task` attributes):
 
 - reset: keyframe 0, plus U(-0.01, 0.01) on every qpos entry (the root quaternion is left
   un-normalised, as in HumanoidBench), qvel = 0, then the task's randomisation from the PRNG key;
