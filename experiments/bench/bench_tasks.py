@@ -1,4 +1,4 @@
-"""Compile time and CPU throughput of every locomotion task, next to the bare robot.
+"""Compile time and CPU throughput of the locomotion and manipulation tasks, beside the bare robot.
 
 For each task: the contact slots MJX allocates per env, the time to compile `VecEnv.reset` and
 `VecEnv.step` (E envs, jitted, the model as a jit argument; wall and process CPU seconds, the
@@ -10,7 +10,12 @@ the task and of the (already compiled) bare robot, ratio = median task rate / me
 so a change of machine load during the run moves both.
 
     .venv/bin/python -m experiments.bench.bench_tasks [--variant h1hand] [--num-envs 64]
-        [--calls 10] [--rounds 3] [--tasks walk,pole]
+        [--calls 10] [--rounds 3] [--tasks walk,pole] [--profile]
+
+`--tasks` takes locomotion and manipulation names (manipulation tasks are h1hand only).
+`--profile` adds the cost of the manipulation contact profile: the robot and one free 0.2 m box
+in front of it, with the hands off (locomotion profile; the box touches the floor only), with the
+62 hand colliders on against the box, and with them on but `max_geom_pairs` 8.
 
 Compiles are not cached (a cached compile would time a disk read).
 """
@@ -27,7 +32,8 @@ import jax.numpy as jnp
 
 import sirl_jax.envs.tasks as tasks
 from sirl_jax.envs.base import EnvState, VecEnv
-from sirl_jax.envs.humanoid import HumanoidEnv, Task
+from sirl_jax.envs.humanoid import HumanoidEnv, Task, contact_arrays, set_max_geom_pairs
+from sirl_jax.envs.tasks import manip
 
 try:  # the contact slots MJX allocates per env (its collision driver's own count)
     from mujoco.mjx._src.collision_driver import make_condim as mjx_contact_dims
@@ -44,6 +50,27 @@ class BareTask(Task):
 
     def evaluate(self, robot, data, task_state):
         return jnp.zeros(()), jnp.zeros((), bool), task_state, {}
+
+
+class BoxTask(BareTask):
+    """The bare robot and one free box (0.2 m, 0.3 kg) on the floor at x 0.45, within reach."""
+
+    def __init__(self, contacts: str, max_geom_pairs: int = 0):
+        self.name = f"box_{contacts[:5]}" + (f"_k{max_geom_pairs}" if max_geom_pairs else "")
+        self.contacts, self.max_geom_pairs = contacts, max_geom_pairs
+
+    def build(self, spec, variant):
+        box = spec.worldbody.add_body(name="object", pos=(0.45, 0.0, 0.1))
+        box.add_freejoint(name="free_object")
+        manip.set_inertial(box, 0.3, (1e-3, 1e-3, 1e-3))
+        if self.contacts == "manipulation":
+            manip.use_hand_contacts(spec)
+            manip.add_object_geom(box, type=manip.BOX, size=(0.1,) * 3, density=0.0)
+        else:
+            box.add_geom(type=manip.BOX, size=(0.1,) * 3, density=0.0, contype=0,
+                         conaffinity=manip.FLOOR)  # fmt: skip
+        if self.max_geom_pairs:
+            set_max_geom_pairs(spec, self.max_geom_pairs)
 
 
 class Stepper:
@@ -79,6 +106,11 @@ class Stepper:
         }
         self.rate()  # warm-up
 
+    def ncon(self) -> float:
+        """Active contacts (dist < 0) per env in the current state, mean over envs."""
+        dist, _ = jax.vmap(contact_arrays)(self.state.physics)  # [E, C]
+        return float(jnp.mean(jnp.sum(dist < 0, axis=-1)))
+
     def rate(self) -> float:
         """Control steps/s (E x calls / wall s) of one block of `calls` steps."""
         jax.block_until_ready(self.state.obs)
@@ -106,36 +138,44 @@ def main() -> None:
     parser.add_argument("--calls", type=int, default=10)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--tasks", default="", help="comma-separated task names (default: all)")
+    parser.add_argument("--profile", action="store_true", help="measure the contact profiles")
     args = parser.parse_args()
     if args.calls < 1 or args.rounds < 1:
         raise SystemExit(f"--calls and --rounds must be >= 1, got {args.calls}, {args.rounds}")
-    names = [r.name for r in tasks.LOCOMOTION]
-    chosen = [n for n in args.tasks.split(",") if n] or names
+    rows = {r.name: r for r in (*tasks.LOCOMOTION, *tasks.MANIPULATION)}
+    names = list(rows)
+    chosen = [n for n in args.tasks.split(",") if n] or (names if not args.profile else [])
     unknown = sorted(set(chosen) - set(names))
     if unknown:
         raise SystemExit(f"unknown tasks {unknown}; allowed: {names}")
-    rows = {r.name: r for r in tasks.LOCOMOTION}
     print(f"variant {args.variant}, E = {args.num_envs}, {args.rounds} x {args.calls} timed "
           f"calls, backend {jax.default_backend()}")
     header = (f"{'task':<16}{'contacts':>9}{'reset compile s':>16}{'step compile s':>16}"
-              f"{'compile CPU s':>14}{'steps/s':>9}{'ratio':>7}")
+              f"{'compile CPU s':>14}{'steps/s':>9}{'ratio':>7}{'ncon':>6}")
     print(header)
     print("-" * len(header))
 
-    def report(name: str, env: HumanoidEnv, compile_s: dict, rate: float, ratio: float) -> None:
-        contacts = len(mjx_contact_dims(env.mj_model))
+    def report(name: str, stepper: Stepper, rate: float, ratio: float) -> None:
+        contacts = len(mjx_contact_dims(stepper.env.mj_model))
+        compile_s = stepper.compile
         print(f"{name:<16}{contacts:>9}{compile_s['reset_compile_s']:>16.1f}"
               f"{compile_s['step_compile_s']:>16.1f}{compile_s['compile_cpu_s']:>14.1f}"
-              f"{rate:>9.0f}{ratio:>7.2f}", flush=True)
+              f"{rate:>9.0f}{ratio:>7.2f}{stepper.ncon():>6.1f}", flush=True)
 
     bare = Stepper(HumanoidEnv(BareTask(), args.variant), args.num_envs, args.calls)
     rate = statistics.median(bare.rate() for _ in range(args.rounds))
-    report("bare", bare.env, bare.compile, rate, 1.0)
+    report("bare", bare, rate, 1.0)
+    if args.profile:
+        for task in (BoxTask("locomotion"), BoxTask("manipulation"), BoxTask("manipulation", 8)):
+            stepper = Stepper(HumanoidEnv(task, args.variant), args.num_envs, args.calls)
+            report(task.name, stepper, *side_by_side(stepper, bare, args.rounds))
+            del stepper
     for name in chosen:
         row = rows[name]
-        env = HumanoidEnv(row.task(), args.variant, success_bar=row.success_bar)
+        variant = "h1hand" if row in tasks.MANIPULATION else args.variant
+        env = HumanoidEnv(row.task(), variant, success_bar=row.success_bar)
         stepper = Stepper(env, args.num_envs, args.calls)
-        report(name, env, stepper.compile, *side_by_side(stepper, bare, args.rounds))
+        report(name, stepper, *side_by_side(stepper, bare, args.rounds))
         del stepper
 
 

@@ -1,6 +1,8 @@
 """The generic H1 task environment: one MJX model (robot + task scene) and a `Task` that scores it.
 
-`HumanoidEnv` implements the `Env` contract for every HumanoidBench locomotion task:
+`HumanoidEnv` implements the `Env` contract for every HumanoidBench task (locomotion and
+manipulation; a `Task` may change the contact profile, the reset-noise scale, the observation's
+state part and the reset state after its kinematics, see the `Task` attributes):
 
 - reset: keyframe 0, plus U(-0.01, 0.01) on every qpos entry (the root quaternion is left
   un-normalised, as in HumanoidBench), qvel = 0, then the task's randomisation from the PRNG key;
@@ -60,6 +62,12 @@ class Task(abc.ABC):
     name: str = ""
     metric_names: tuple[str, ...] = ()
     extra_obs_size: int = 0
+    contacts: str = "locomotion"
+    """`h1.robot_spec` contact profile ("manipulation" turns the hand colliders on)."""
+    reset_noise: float = RESET_NOISE
+    """Half-width of the uniform noise added to every keyframe qpos entry at reset."""
+    full_state_obs: bool = True
+    """Observation = full qpos and qvel (objects included) + extras; False: the robot's only."""
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         """Adds the task scene to `spec` (default: none)."""
@@ -79,6 +87,12 @@ class Task(abc.ABC):
         self, robot: Any, data: mjx.Data, task_state: Any
     ) -> tuple[jax.Array, jax.Array, Any, dict[str, jax.Array]]:
         """(reward [], terminated [] bool, new task state, metrics {name: []})."""
+
+    def after_reset(self, robot: Any, data: mjx.Data, task_state: Any) -> tuple[mjx.Data, Any]:
+        """Edits the reset state once its kinematics are known (e.g. an object placed relative to
+        a hand site); default: none. Positions it changes are stale until the first step."""
+        del robot
+        return data, task_state
 
     def extra_obs(self, robot: Any, data: mjx.Data, task_state: Any) -> jax.Array:
         """[extra_obs_size] observation entries after qpos and qvel (default: none)."""
@@ -160,7 +174,7 @@ class HumanoidEnv(Env):
         self.variant = variant
         self._episode_length = int(episode_length)
         self._success_bar = success_bar
-        spec = h1.robot_spec(variant=variant, contacts="locomotion")
+        spec = h1.robot_spec(variant=variant, contacts=task.contacts)
         task.build(spec, variant)
         self.mj_model = spec.compile()
         self.robot = h1.Robot(self.mj_model)
@@ -169,7 +183,8 @@ class HumanoidEnv(Env):
         self._control_step = h1.make_control_step(FRAME_SKIP)
         self._qpos0 = jnp.asarray(self.mj_model.key_qpos[0], jnp.float32)
         nq, nv = self.mj_model.nq, self.mj_model.nv
-        self._obs_size = nq + nv + task.extra_obs_size
+        state_size = nq + nv if task.full_state_obs else self.robot.obs_size
+        self._obs_size = state_size + task.extra_obs_size
 
     def _set_physics(self, physics: Physics) -> None:
         self.sim = Simulator(self.mj_model, physics)
@@ -210,11 +225,10 @@ class HumanoidEnv(Env):
         return env
 
     def reset(self, key: jax.Array) -> EnvState:
-        """Keyframe + U(+-0.01) on all qpos + task randomisation; qvel = 0."""
+        """Keyframe + U(+-0.01) on all qpos (task.reset_noise) + task randomisation; qvel = 0."""
         key_noise, key_task, key_next = jax.random.split(key, 3)
-        noise = jax.random.uniform(
-            key_noise, self._qpos0.shape, minval=-RESET_NOISE, maxval=RESET_NOISE
-        )
+        scale = self.task.reset_noise
+        noise = jax.random.uniform(key_noise, self._qpos0.shape, minval=-scale, maxval=scale)
         qpos, task_state = self.task.init(key_task, self._qpos0 + noise)
         data = self.sim.make_data(self.mx)
         data = data.replace(qpos=qpos, qvel=jnp.zeros_like(data.qvel))
@@ -222,6 +236,7 @@ class HumanoidEnv(Env):
         # full forward pass anyway, and leaving collision and the solver out of reset halves the
         # compiled program (VecEnv's auto-reset inlines a reset in every step).
         data = self.sim.detach_pool(mjx.kinematics(self.mx, self.sim.attach_pool(data)))
+        data, task_state = self.task.after_reset(self.robot, data, task_state)
         obs = self._observe(data, task_state)
         metrics = {name: jnp.zeros((), jnp.float32) for name in self._metric_names}
         return init_state(data, obs, key_next, task=task_state, metrics=metrics)
@@ -247,4 +262,7 @@ class HumanoidEnv(Env):
 
     def _observe(self, data: mjx.Data, task_state: Any) -> jax.Array:
         extra = self.task.extra_obs(self.robot, data, task_state)
-        return jnp.concatenate([data.qpos, data.qvel, extra]).astype(jnp.float32)
+        state = (
+            [data.qpos, data.qvel] if self.task.full_state_obs else [self.robot.observation(data)]
+        )
+        return jnp.concatenate([*state, extra]).astype(jnp.float32)
