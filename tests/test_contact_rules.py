@@ -33,9 +33,9 @@ DEPTH = 0.014
 ARM_OUT = {"left_shoulder_roll": 1.5}
 # task -> (obstacle geom, discount metric, [(group, part geom, joint overrides, direction, shift)])
 CASES = {
-    "hurdle": ("behind_barrier_collision_5", "wall_collision_discount", [
+    "hurdle": ("behind_barrier_collision_2", "wall_collision_discount", [
         ("hands", "lh_mfdistal", {}, (1, 0, 0), (0, 0, 0)),
-        ("arms", "left_forearm", {}, (1, 0, 0), (0, 0, 0.6)),
+        ("arms", "left_forearm", {}, (0, 1, 0), (0, 0, 0.6)),
         ("feet", "left_foot", {}, (-1, 0, 0), (0, 0, -0.3)),
     ]),
     "maze": ("block_collision_00", "wall_collision_discount", [
@@ -46,7 +46,7 @@ CASES = {
     ]),
     "pole": ("pole_r1_c0", "collision_discount", [
         ("hands", "lh_mfdistal", {}, (1, 0, 0), (0, 0, 0)),
-        ("arms", "left_forearm", ARM_OUT, (1, 0, 0), (0, 0, 0)),
+        ("arms", "left_forearm", ARM_OUT, (-1, 0, 0), (0, 0, 0)),
         ("feet", "left_foot", {"left_hip_roll": 0.4}, (1, 0, 0), (0, 0, 0)),
     ]),
 }  # fmt: skip

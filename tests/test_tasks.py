@@ -251,7 +251,8 @@ def _check_held_by_scene(env, name, limp):
     root = last[:, :3]
     assert (root[held, 2] < 0.8).all()  # it did collapse (keyframe root z 0.98)
     if name == "maze":  # leaning on a block: the block penalty is active
-        assert limp["terminated"].any()
+        # Arms and palms collide with the blocks (HumanoidBench's contact set), so the block
+        # behind the start may hold every limp robot above the 0.2 m termination height.
         # Sliding slowly down the block, the contact flickers (a step with dist >= 0 now and
         # then), so ask for the penalty on most of the last 20 steps rather than on the last.
         wall = limp["metrics"]["wall_collision_discount"][EPISODE - 20 : EPISODE, held]
