@@ -19,10 +19,10 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
+from rollouts import hold_and_limp
 
 import sirl_jax.envs.tasks as tasks
 from sirl_jax.envs import TASKS, make
-from sirl_jax.envs.base import VecEnv
 from sirl_jax.envs.tasks import manip
 from sirl_jax.envs.tasks.basketball import CATCH, THROW, basketball_reward, throw_state
 from sirl_jax.envs.tasks.cube import cube_reward, cube_terminated
@@ -334,58 +334,8 @@ def test_dumbbell_rests_on_floor_and_cubes_on_palms():
 
 
 # -- compiled rollouts ---------------------------------------------------------------------------
-def _weightless(mx):
-    return mx.replace(opt=mx.opt.replace(gravity=jnp.zeros_like(mx.opt.gravity)))
-
-
-def _limp(mx):
-    return mx.replace(
-        actuator_gainprm=mx.actuator_gainprm.at[:, 0].set(0.0),
-        actuator_biasprm=mx.actuator_biasprm.at[:, 1:3].set(0.0),
-    )
-
-
-def _rollout(env):
-    def run(mx, key, action):
-        v = VecEnv(env.with_model(mx), E)
-        start = v.reset(key)
-
-        def body(state, _):
-            state = v.step(state, jnp.broadcast_to(action, (E, env.action_size)))
-            finite = jnp.all(jnp.isfinite(state.obs), -1) & jnp.all(
-                jnp.isfinite(state.final_obs), -1
-            )
-            trace = {
-                "finite": finite,
-                "final_obs": state.final_obs,
-                "qpos": state.physics.qpos,
-                "reward": state.reward,
-                "terminated": state.terminated,
-                "truncated": state.truncated,
-                "last_length": state.last_length,
-                "metrics": state.metrics,
-            }
-            return state, trace
-
-        _, trace = jax.lax.scan(body, start, None, length=EPISODE + EXTRA)
-        return start, trace
-
-    return jax.jit(run)
-
-
-_COMPILED: dict[str, tuple] = {}
-
-
 def _run(task_id):
-    if task_id not in _COMPILED:
-        env = make(task_id, episode_length=EPISODE)
-        run = _rollout(env)
-        key = jax.random.PRNGKey(0)
-        hold = jnp.asarray(env.robot.keyframe_action)
-        normal = jax.device_get(run(_weightless(env.mx), key, hold))
-        limp = jax.device_get(run(_limp(env.mx), key, jnp.zeros(env.action_size)))
-        _COMPILED[task_id] = (env, normal, limp)
-    return _COMPILED[task_id]
+    return hold_and_limp(task_id, E, EPISODE, EXTRA)
 
 
 def _check_bookkeeping(trace):
@@ -400,7 +350,7 @@ def _check_bookkeeping(trace):
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("task_id", ALL_IDS)
 def test_rollout(task_id):
-    env, (start, hold), (_, limp) = _run(task_id)
+    env, (start, _, hold), (_, _, limp) = _run(task_id)
     name = task_id.split("-")[1]
     assert start.obs.shape == (E, HB[name][2]) and np.isfinite(start.obs).all()
     _check_bookkeeping(hold)
@@ -423,7 +373,7 @@ def test_rollout(task_id):
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("task_id", [_param("h1hand-push-v0")])
 def test_push_observation_and_goals(task_id):
-    env, (start, _), _ = _run(task_id)
+    env, (start, _, _), _ = _run(task_id)
     goal = np.asarray(start.task)
     assert ((goal[:, 0] >= 0.7) & (goal[:, 0] <= 1.0)).all()
     assert ((goal[:, 1] >= -0.5) & (goal[:, 1] <= 0.5)).all() and (goal[:, 2] == 1.0).all()
@@ -440,7 +390,7 @@ def test_push_observation_and_goals(task_id):
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("task_id", [_param("h1hand-cube-v0")])
 def test_cube_reset_orientations(task_id):
-    env, (start, _), _ = _run(task_id)
+    env, (start, _, _), _ = _run(task_id)
     qpos = np.asarray(start.physics.qpos)
     target = np.asarray(start.task)
     close(np.asarray(start.obs)[:, -4:], target)

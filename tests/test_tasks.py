@@ -17,14 +17,13 @@ from __future__ import annotations
 import math
 
 import jax
-import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
+from rollouts import hold_and_limp
 
 import sirl_jax.envs.tasks as tasks
 from sirl_jax.envs import TASKS, make
-from sirl_jax.envs.base import VecEnv
 from sirl_jax.envs.tasks.obstacles import WALL_DISCOUNT, maze_block_centres, pole_positions
 from sirl_jax.envs.tasks.sit import CHAIR_POS
 from sirl_jax.envs.tasks.terrain import slide_boxes, stair_treads
@@ -137,70 +136,10 @@ def test_scene_geometry():
 
 
 # -- batched rollouts --------------------------------------------------------------------------
-def _weightless(mx):
-    """The model without gravity: a robot holding its pose cannot fall."""
-    return mx.replace(opt=mx.opt.replace(gravity=jnp.zeros_like(mx.opt.gravity)))
-
-
-def _limp(mx):
-    """The model with every actuator's gain and bias zeroed: no actuator force at all."""
-    return mx.replace(
-        actuator_gainprm=mx.actuator_gainprm.at[:, 0].set(0.0),
-        actuator_biasprm=mx.actuator_biasprm.at[:, 1:3].set(0.0),
-    )
-
-
-def _rollout(env):
-    venv = VecEnv(env, E)
-
-    def run(mx, key, action):
-        v = VecEnv(env.with_model(mx), E)
-        start = v.reset(key)
-
-        def body(state, _):
-            state = v.step(state, jnp.broadcast_to(action, (E, env.action_size)))
-            finite = jnp.all(jnp.isfinite(state.obs), -1) & jnp.all(
-                jnp.isfinite(state.final_obs), -1
-            )
-            trace = {
-                "finite": finite,
-                "root_z": state.final_obs[:, 2],  # obs starts with qpos
-                "final_obs": state.final_obs,
-                "reward": state.reward,
-                "terminated": state.terminated,
-                "truncated": state.truncated,
-                "last_length": state.last_length,
-                "step_count": state.step_count,
-                "metrics": state.metrics,
-            }
-            return state, trace
-
-        end, trace = jax.lax.scan(body, start, None, length=EPISODE + EXTRA)
-        return start, end, trace
-
-    assert venv.episode_length == EPISODE
-    return jax.jit(run)
-
-
-_COMPILED: dict[str, tuple] = {}
-
-
 @pytest.fixture(scope="module")
 def rollouts():
     """task id -> (env, weightless holding run, limp run); one compile per task, shared."""
-
-    def get(task_id):
-        if task_id not in _COMPILED:
-            env = make(task_id, episode_length=EPISODE)
-            run = _rollout(env)
-            key = jax.random.PRNGKey(0)
-            hold = jnp.asarray(env.robot.keyframe_action)
-            normal = jax.device_get(run(_weightless(env.mx), key, hold))
-            limp = jax.device_get(run(_limp(env.mx), key, jnp.zeros(env.action_size)))
-            _COMPILED[task_id] = (env, normal, limp)
-        return _COMPILED[task_id]
-
-    return get
+    return lambda task_id: hold_and_limp(task_id, E, EPISODE, EXTRA)
 
 
 def _check_bookkeeping(trace):
