@@ -123,7 +123,7 @@ def main() -> None:
             continue
         t0 = time.perf_counter()
         row = rows[name]
-        variant = "h1hand" if row in tasks.MANIPULATION else args.variant
+        variant = row.robot if row in tasks.MANIPULATION else args.variant
         env = HumanoidEnv(
             row.task(), variant, episode_length=row.episode_length, success_bar=row.success_bar
         )

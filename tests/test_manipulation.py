@@ -3,7 +3,7 @@
 Cheap checks run in CI: the registry and sizes, `jax.eval_shape` tracing of reset and reward
 for every task, the reward numerics, and contact checks with CPU MuJoCo on the very model MJX
 compiles (contact bits and geometry are model data). Compiled MJX rollouts (about a minute each
-on 2 cores): push and cube in CI, the others marked slow.
+on 2 cores): push, cube and insert_normal in CI, the others marked slow.
 
 Rollouts follow tests/test_tasks.py: E = 4 envs, `reset` then EPISODE + EXTRA steps in a
 `lax.scan`, run weightless holding the keyframe pose (nothing falls, so every episode ends by
@@ -13,6 +13,7 @@ truncation at exactly EPISODE) and limp (no actuator force, normal gravity).
 from __future__ import annotations
 
 import math
+import types
 
 import jax
 import jax.numpy as jnp
@@ -23,12 +24,22 @@ from rollouts import hold_and_limp
 
 import sirl_jax.envs.tasks as tasks
 from sirl_jax.envs import TASKS, make
+from sirl_jax.envs.humanoid import HumanoidEnv
 from sirl_jax.envs.tasks import manip
 from sirl_jax.envs.tasks.basketball import CATCH, THROW, basketball_reward, throw_state
+from sirl_jax.envs.tasks.bookshelf import BookshelfTask, bookshelf_reward
+from sirl_jax.envs.tasks.cabinet import cabinet_reward
 from sirl_jax.envs.tasks.cube import cube_reward, cube_terminated
+from sirl_jax.envs.tasks.door import door_reward
+from sirl_jax.envs.tasks.highbar import HighBarTask, highbar_reward
+from sirl_jax.envs.tasks.insert import insert_reward, insert_terminated
 from sirl_jax.envs.tasks.package import package_reward
 from sirl_jax.envs.tasks.powerlift import powerlift_reward
 from sirl_jax.envs.tasks.push import push_reward
+from sirl_jax.envs.tasks.room import room_reward
+from sirl_jax.envs.tasks.spoon import spoon_reward, spoon_target
+from sirl_jax.envs.tasks.truck import ON_TABLE, ON_TRUCK, PICKED_UP, truck_reward
+from sirl_jax.envs.tasks.window import window_reward
 
 E = 4
 EPISODE = 60
@@ -41,11 +52,23 @@ HB = {
     "powerlift": (1000, 800, 164, 83, 81),
     "basketball": (500, 1200, 164, 83, 81),
     "package": (1000, 1500, 173, 83, 81),
+    "spoon": (1000, 650, 167, 83, 81),
+    "window": (1000, 650, 171, 87, 84),
+    "insert_normal": (500, 350, 190, 97, 93),
+    "insert_small": (500, 350, 190, 97, 93),
+    "highbar_hard": (1000, 750, 151, 76, 75),
+    "door": (1000, 600, 155, 78, 77),
+    "cabinet": (1000, 2500, 213, 109, 104),
+    "room": (1000, 400, 229, 118, 111),
+    "truck": (1000, 3000, 216, 111, 105),
+    "bookshelf_simple": (1000, 2000, 308, 160, 147),
+    "bookshelf_hard": (1000, 2000, 308, 160, 147),
 }
 NAMES = [row.name for row in tasks.MANIPULATION]
-CI_IDS = ("h1hand-push-v0", "h1hand-cube-v0")
-ROOT_Z_TERMINATION = {"powerlift": 0.2}
-ONLY_SUCCESS_ENDS = ("push", "package")
+IDS = {row.name: tasks.task_id(row.robot, row.name) for row in tasks.MANIPULATION}
+CI_IDS = ("h1hand-push-v0", "h1hand-cube-v0", "h1hand-insert_normal-v0")
+ROOT_Z_TERMINATION = {"powerlift": 0.2, "spoon": 0.58, "insert_normal": 0.5}
+ONLY_SUCCESS_ENDS = ("push", "package", "cabinet", "truck")
 
 
 def _param(task_id: str):
@@ -53,7 +76,7 @@ def _param(task_id: str):
     return pytest.param(task_id, marks=marks, id=task_id)
 
 
-ALL_IDS = [_param(f"h1hand-{n}-v0") for n in NAMES]
+ALL_IDS = [_param(IDS[n]) for n in NAMES]
 
 
 def close(a, b, tol=1e-5):
@@ -67,8 +90,9 @@ def _site(env, name):
 # -- registry, sizes, tracing (no compile) ------------------------------------------------------
 def test_registry_rows():
     assert set(NAMES) == set(HB)
+    assert IDS["highbar_hard"] == "h1strong-highbar_hard-v0"
     for name, (length, bar, *_) in HB.items():
-        spec = TASKS[f"h1hand-{name}-v0"]
+        spec = TASKS[IDS[name]]
         assert spec.episode_length == length and spec.success_bar == bar
         assert TASKS[name].id == spec.id
         assert f"h1-{name}-v0" not in TASKS
@@ -79,7 +103,7 @@ def test_sizes_and_tracing_of_every_task():
     """Sizes as HumanoidBench's `gym.make`; reset and the reward traced (jax.eval_shape)."""
     for name in NAMES:
         length, bar, obs, nq, nv = HB[name]
-        env = make(f"h1hand-{name}-v0")
+        env = make(IDS[name])
         assert (env.mj_model.nq, env.mj_model.nv) == (nq, nv), name
         assert env.observation_size == obs and env.action_size == 61, name
         assert env.episode_length == length and env.success_bar == bar, name
@@ -237,6 +261,289 @@ def test_basketball_throw_state():
     close(vel, [0.0, 7.5, 0.0])
 
 
+def _lin(d, vam=0.1):
+    """dm_control's linear sigmoid at d = distance / margin: max(1 - d (1 - vam), 0)."""
+    return max(1.0 - d * (1.0 - vam), 0.0)
+
+
+def test_insert_peg_tolerances():
+    head, zz, force, _ = _standing_robot()
+    pegs = jnp.array([[0.8, -0.2, 1.1], [0.8, 0.2, 1.1]])
+    # solved: pegs at 1.1, block ends in them, the left hand on peg a
+    hands = jnp.stack([pegs[0], pegs[1] + jnp.array([0.0, 0.0, 0.6])])
+    r, terms = insert_reward(head, zz, force, pegs, pegs, hands)
+    close(r, 1.0)
+    # pegs 0.075 low (d = 0.5), one 0.075 high (the bound is a point): 0.55 each
+    for dz in (-0.075, 0.075):
+        _, terms = insert_reward(head, zz, force, pegs, pegs + jnp.array([0.0, 0.0, dz]), hands)
+        close(terms["peg_height_reward"], _lin(0.5))
+    # block ends 0.25 (d = 0.5) and 0.5 (d = 1) from the pegs; hands 0.45 and 0.7 from their
+    # pegs: the nearer counts, d = (0.45 - 0.2) / 0.5 = 0.5 -> 0.1 ** 0.25
+    ends = pegs + jnp.array([[0.0, 0.25, 0.0], [0.3, 0.4, 0.0]])
+    hands = pegs + jnp.array([[0.0, 0.0, 0.45], [0.0, 0.0, 0.7]])
+    r, terms = insert_reward(head, zz, force, ends, pegs, hands)
+    target = (_lin(0.5) + _lin(1.0)) / 2
+    close(terms["cube_target_reward"], target)
+    close(terms["hand_tool_proximity_reward"], 0.1**0.25)
+    close(r, (0.5 + 0.5 * target) * (0.5 + 0.5 * 0.1**0.25))
+    # right hand pairs with peg b only: on peg a it is 0.4 from peg b
+    hands = jnp.stack([pegs[0] + jnp.array([0.0, 0.0, 1.0]), pegs[0]])
+    _, terms = insert_reward(head, zz, force, ends, pegs, hands)
+    close(terms["hand_tool_proximity_reward"], 0.1 ** (0.4**2))
+    assert not bool(insert_terminated(jnp.asarray(0.9), jnp.array([0.95, 0.95, 0.95, 0.51])))
+    assert bool(insert_terminated(jnp.asarray(0.9), jnp.array([0.95, 0.49, 0.95, 0.95])))
+    assert bool(insert_terminated(jnp.asarray(0.49), jnp.array([0.95, 0.95, 0.95, 0.95])))
+
+
+def test_spoon_target_and_reward():
+    centre = np.array([0.75, -0.1, 0.95])
+    close(spoon_target(0), centre + [0.06, 0.0, 0.0])
+    close(spoon_target(10), centre + [0.0, 0.06, 0.0])
+    close(spoon_target(20), centre + [-0.06, 0.0, 0.0])
+    close(spoon_target(40), spoon_target(0))
+    head, zz, force, _ = _standing_robot()
+    cup = jnp.array([0.75, -0.1, 0.9])
+    target = spoon_target(5)
+    handle = jnp.array([0.7, -0.1, 1.05])
+    hands = jnp.stack([handle, handle + jnp.array([0.0, 0.0, 1.0])])
+    # the plate on the target, inside the cup (z 0.05 above its base, 0.1 window around 0.1)
+    r, terms = spoon_reward(head, zz, force, hands, handle, target, cup, target)
+    close(terms["reward_spoon_in_cup"], 1.0)
+    close(r, 1.0)
+    # plate 0.12 above the target (d = 0.8), still in the cup (z offset 0.07 from cup z + 0.1)
+    plate = target + jnp.array([0.0, 0.0, 0.12])
+    r, terms = spoon_reward(head, zz, force, hands, handle, plate, cup, target)
+    close(terms["spoon_spinning_reward"], 0.1**0.64)
+    close(terms["reward_spoon_in_cup"], 1.0)
+    close(r, 0.65 + 0.35 * 0.1**0.64)
+    # 0.11 off the cup's centre in x: out of the cup
+    plate = cup + jnp.array([0.11, 0.0, 0.1])
+    _, terms = spoon_reward(head, zz, force, hands, handle, plate, cup, target)
+    close(terms["reward_spoon_in_cup"], 0.0)
+
+
+def test_window_reward_terms():
+    head, zz, force, _ = _standing_robot()
+    head0 = jnp.array([0.0, 0.0, 1.7])
+    head_pos = head0 + jnp.array([0.4, 0.0, 0.0])  # moved 0.4: in bounds
+    tool = jnp.array([0.6, 0.0, 1.2])
+    hands = jnp.stack([tool, tool + jnp.array([0.0, 0.1, 0.0])])
+    wipe_x = jnp.full(5, 0.92)
+    args = (head, zz, force, head_pos, head0, jnp.asarray(-0.5), hands, tool)
+    r, terms = window_reward(*args, wipe_x, jnp.asarray(True))
+    close(r, 1.0)
+    r, terms = window_reward(*args, wipe_x, jnp.asarray(False))
+    close(r, 0.5)  # the wipe term needs the pane contact
+    close(terms["window_contact_reward"], 1.0)
+    # one site 0.2 short (d = 0.5): the min counts; the far hand (0.45) counts
+    hands = jnp.stack([tool, tool + jnp.array([0.0, 0.45, 0.0])])
+    r, terms = window_reward(head, zz, force, head_pos, head0, jnp.asarray(0.0), hands, tool,
+                             wipe_x.at[3].set(0.72), jnp.asarray(True))  # fmt: skip
+    close(terms["window_contact_reward"], _lin(0.5))
+    close(terms["hand_tool_proximity_reward"], 0.1**0.25)
+    close(terms["moving_wipe_reward"], 0.1)  # |v_z| 0 is the 0.5 margin below 0.5
+    close(r, 0.5 * (0.2 + 0.4 * 0.1 + 0.4 * 0.1**0.25) + 0.5 * _lin(0.5))
+    # the head moved 0.35 or 0.45: d = 0.5 -> 0.1 ** 0.25 on the stand term
+    for dx in (0.35, 0.45):
+        r, _ = window_reward(head, zz, force, head0 + jnp.array([dx, 0.0, 0.0]), head0,
+                             jnp.asarray(0.5), hands, tool, wipe_x, jnp.asarray(True))
+        close(r, 0.5 * (0.2 * 0.1**0.25 + 0.4 + 0.4 * 0.1**0.25) + 0.5)
+
+
+@pytest.mark.parametrize(
+    "zz, feet, upright, feet_term",
+    [(-1.0, (4.8, 4.8), 1.0, 1.0), (1.0, (2.8, 2.8), 0.0, 0.5), (0.0, (3.8, 3.8), 1 - 0.9 / 1.9,
+     0.75), (-0.9, (5.0, 3.0), 1.0, 0.8)],  # mean 4.0: d = 0.4
+)  # fmt: skip
+def test_highbar_reward(zz, feet, upright, feet_term):
+    _, _, force, _ = _standing_robot()
+    r, terms = highbar_reward(jnp.asarray(zz), jnp.asarray(feet), force)
+    close(terms["upright_reward"], upright)
+    close(terms["feet_reward"], feet_term)
+    close(r, upright * feet_term)
+
+
+def test_door_reward():
+    head, zz, force, _ = _standing_robot()
+    hatch = jnp.array([0.8, 0.4, 1.2])
+    hands = jnp.stack([hatch, hatch + jnp.array([0.0, 0.0, 2.0])])
+    # door at 0.5 rad: 0.25; hatch 0.75 (in bounds); hand on the hatch; imu at x 1.2
+    r, terms = door_reward(head, zz, force, jnp.asarray(0.5), jnp.asarray(0.75), hatch, hands,
+                           jnp.asarray(1.2))  # fmt: skip
+    close(terms["door_openness_reward"], 0.25)
+    close(r, 0.1 + 0.45 * 0.25 + 0.05 + 0.05 + 0.35)
+    # door past 1 rad: capped at 1; hatch 0.375, nearest hand 0.75 (d = 0.5 each, linear with
+    # 0.1 at the margin: 0.55); imu x 0.7 (d = 0.5, linear with 0 at the margin: 0.5)
+    hands = jnp.stack([hatch + jnp.array([0.0, 0.0, 0.75]), hatch + jnp.array([0.0, 0.0, 2.0])])
+    r, terms = door_reward(head, zz, force, jnp.asarray(1.2), jnp.asarray(0.375), hatch, hands,
+                           jnp.asarray(0.7))  # fmt: skip
+    close(terms["door_openness_reward"], 1.0)
+    close(terms["hand_hatch_proximity_reward"], _lin(0.5))
+    close(terms["passage_reward"], 0.5)
+    close(r, 0.1 + 0.45 + 0.05 * _lin(0.5) * 2 + 0.35 * 0.5)
+    # upright's margin is 0.9 in door: zz 0.45 -> 0.5
+    _, terms = door_reward(head, jnp.asarray(0.45), force, jnp.asarray(0.0), jnp.asarray(0.0),
+                           hatch, hands, jnp.asarray(0.0))  # fmt: skip
+    close(terms["stand_reward"], 0.5)
+
+
+def _cabinet(stage, q=(0.0,) * 5, drawer_cube=(0.9, 0.0, 0.58), lateral_cube=(0.9, 0.0, 0.87)):
+    head, zz, force, _ = _standing_robot()
+    return cabinet_reward(head, zz, force, jnp.asarray(stage, jnp.int32), jnp.asarray(q),
+                          jnp.asarray(drawer_cube), jnp.asarray(lateral_cube))  # fmt: skip
+
+
+def test_cabinet_subtasks_complete_at_their_thresholds():
+    # q order: drawer, left door, right door, pulling door, pull-up door
+    r, stage, _ = _cabinet(1, (0, 0, 0, -0.37, 0))  # 0.925 of the 0.4 m slide
+    close(r, 0.2 + 0.8 * 0.925)
+    assert int(stage) == 1
+    r, stage, terms = _cabinet(1, (0, 0, 0, -0.39, 0))  # 0.975 > 0.95: + 100
+    close(r, 0.2 + 0.8 * 0.975 + 100.0)
+    assert int(stage) == 2 and float(terms["success_subtasks"]) == 1.0
+    r, stage, _ = _cabinet(2, (0.42, 0, 0, -0.39, 0))  # 0.933 of 0.45
+    close(r, 0.2 + 0.8 * 0.42 / 0.45)
+    assert int(stage) == 2
+    r, stage, _ = _cabinet(2, (0.43, 0, 0, 0, 0))
+    close(r, 0.2 + 0.8 * 0.43 / 0.45 + 200.0)
+    assert int(stage) == 3
+    # subtask 3: the drawer cube inside the lateral cabinet, the left door half open
+    r, stage, _ = _cabinet(3, (0.45, -0.5, 0, 0, 0), drawer_cube=(0.9, 0.0, 0.94))
+    close(r, 0.2 + 0.8 * (0.5 * 1.0 + 0.5 * 0.5) + 300.0)
+    assert int(stage) == 4
+    # outside: x 0.45 and z 0.3 off (d = 0.5 each, linear 0.55), y centred; the right door
+    # open past 1 rad counts 1 (the better door)
+    r, stage, terms = _cabinet(3, (0, -0.5, 1.2, 0, 0), drawer_cube=(1.35, 0.0, 1.24))
+    proximity = 0.3 * (_lin(0.5) + 1.0) / 2 + 0.7 * _lin(0.5)
+    close(terms["drawer_cube_proximity_reward"], proximity)
+    close(r, 0.2 + 0.8 * (0.5 * proximity + 0.5))
+    assert int(stage) == 3
+    # subtask 4: the lateral cube in the pull-up drawer: + 400, stage 5 (done)
+    r, stage, terms = _cabinet(4, (0, 0, 0, 0, 1.2), lateral_cube=(0.9, 0.1, 1.54))
+    close(r, 0.2 + 0.8 + 400.0)
+    assert int(stage) == 5 and float(terms["success"]) == 1.0
+
+
+def test_cabinet_bonus_is_paid_once():
+    """The pulling door held open for 5 steps: 100 in the first, none after (the stage moved
+    on to the drawer)."""
+    stage, bonus = jnp.asarray(1, jnp.int32), []
+    for _ in range(5):
+        r, stage, _ = _cabinet(stage, (0, 0, 0, -0.4, 0))
+        bonus.append(float(r) > 100.0)
+    assert bonus == [True, False, False, False, False] and int(stage) == 2
+
+
+def test_room_reward_spread():
+    head, zz, force, _ = _standing_robot()
+    together = jnp.tile(jnp.array([1.0, 2.0, 0.1]), (6, 1))
+    r, terms = room_reward(head, zz, force, together)
+    close(r, 1.0)
+    # x alternating -1, 1: population variance 1 (y 0): d = 1/3 of the margin
+    spread = together.at[:, 0].set(jnp.array([-1.0, 1.0] * 3)).at[:, 1].set(0.0)
+    r, terms = room_reward(head, zz, force, spread)
+    close(terms["room_object_organized"], 0.1 ** (1 / 9))
+    close(r, 0.2 + 0.8 * 0.1 ** (1 / 9))
+    # the larger of the two variances counts: y spread 2x as wide
+    spread = spread.at[:, 1].set(jnp.array([-2.0, 2.0] * 3))
+    _, terms = room_reward(head, zz, force, spread)
+    close(terms["room_object_organized"], 0.1 ** ((4 / 3) ** 2))
+
+
+def _truck(packages, status, z0, root=(100.0, 0.0, 1.0), table=(-100.0, 0.0, 0.45)):
+    """truck_reward with the robot and the table body far from every package unless given (the
+    "upon the table" test uses fixed bounds, not the body): the
+    distance terms are then 0 and the reward is the events alone."""
+    return truck_reward(jnp.asarray(1.0), jnp.asarray(root), jnp.asarray(table),
+                        jnp.asarray(packages), jnp.asarray(status, jnp.int32), jnp.asarray(z0))
+
+
+def test_truck_events_are_paid_once_each():
+    start = np.array([[5.0, y, 1.1] for y in (-0.5, -0.25, 0.0, 0.25, 0.5)])
+    z0 = start[:, 2].copy()
+    status = np.full(5, ON_TRUCK)
+    r, status, terms = _truck(start, status, z0)
+    close(r, 0.0)
+    lifted = start.copy()
+    lifted[0, 2] += 0.11  # 0.11 above its first-step z: picked up
+    r, status, terms = _truck(lifted, status, z0)
+    close(r, 100.0)
+    assert status.tolist() == [PICKED_UP] + [ON_TRUCK] * 4
+    r, status, _ = _truck(lifted, status, z0)  # still held: nothing new
+    close(r, 0.0)
+    on_table = lifted.copy()
+    on_table[0] = (2.0, -1.7, 0.95)
+    r, status, terms = _truck(on_table, status, z0)
+    close(r, 100.0)
+    assert int(status[0]) == ON_TABLE and float(terms["packages_on_table"]) == 1.0
+    r, status, _ = _truck(lifted, status, z0)  # taken off the table again: -100
+    close(r, -100.0)
+    assert int(status[0]) == PICKED_UP
+    # from the truck straight over the table in one step (and 0.15 above its start): picked up
+    # and placed, + 200
+    both = on_table.copy()
+    both[1] = (2.1, -1.6, 1.25)
+    r, status, _ = _truck(both, status, z0)
+    close(r, 300.0)  # package 0 placed again (+100), package 1 lifted and placed (+200)
+    # all five placed: + 300 for the last three, + 1000, success
+    done = np.array([[2.0 + 0.05 * k, -1.7, 1.25] for k in range(5)])
+    r, status, terms = _truck(done, status, z0)
+    close(r, 3 * 200.0 + 1000.0)
+    assert (np.asarray(status) == ON_TABLE).all() and float(terms["success"]) == 1.0
+
+
+def test_truck_distance_terms():
+    start = np.array([[5.0, y, 1.1] for y in (-0.5, -0.25, 0.0, 0.25, 0.5)])
+    status = np.array([PICKED_UP] + [ON_TRUCK] * 4)
+    # the root 0.2 from the nearest truck package (in bounds), 2.2 from the picked one (d 0.5);
+    # the picked one 4.2 from the table (d = 1: 0)
+    root = start[1] + np.array([0.0, 0.0, 0.2])
+    picked = root + np.array([0.0, 0.0, 2.2])
+    packages = start.copy()
+    packages[0] = picked
+    table = picked + np.array([0.0, 4.2, 0.0])
+    r, _, terms = _truck(packages, status, packages[:, 2] + 1.0, root=root, table=table)
+    close(terms["reward_robot_package_truck"], 1.0)
+    close(terms["reward_robot_package_picked_up"], 0.5)
+    close(terms["reward_package_table"], 0.0)
+    close(r, 1.5)
+    _, _, terms = _truck(start, np.full(5, ON_TRUCK), start[:, 2], root=root)
+    close(terms["reward_robot_package_picked_up"], 0.0)  # nothing picked up: 0
+
+
+def test_bookshelf_reward_and_stages():
+    head, zz, force, _ = _standing_robot()
+    goal = jnp.array([0.8, 0.05, 0.95])
+    obj = goal + jnp.array([0.1, 0.0, 0.0])  # within 0.15: placed
+    hands = jnp.stack([obj, obj + 1.0])
+    r, index, terms = bookshelf_reward(head, zz, force, obj, goal, hands, jnp.asarray(2))
+    assert int(index) == 3 and float(terms["success_subtasks"]) == 3.0
+    close(r, 0.2 + 0.4 + 0.4 + 300.0)  # the third placement pays 100 x 3
+    obj = goal + jnp.array([0.0, 0.0, 0.65])  # d = (0.65 - 0.15) / 1 = 0.5 -> 0.55
+    hands = jnp.stack([obj + jnp.array([1.0, 0.0, 0.0]), obj + jnp.array([0.0, 2.0, 0.0])])
+    r, index, terms = bookshelf_reward(head, zz, force, obj, goal, hands, jnp.asarray(0))
+    assert int(index) == 0
+    close(terms["reward_proximity"], _lin(0.5))
+    close(r, 0.2 + 0.4 * _lin(0.5) + 0.4 * math.exp(-1.0))
+
+
+def test_bookshelf_orders():
+    qpos = jnp.zeros(160)
+    _, simple = BookshelfTask("bookshelf_simple").init(jax.random.PRNGKey(0), qpos)
+    assert np.asarray(simple["order"]).tolist() == [5, 2, 9, 4, 1, 1]  # trophy, book_c, ...
+    close(simple["goals"][0], [0.75, -0.25, 1.55])
+    hard = BookshelfTask("bookshelf_hard")
+    orders = set()
+    for seed in range(8):
+        _, state = hard.init(jax.random.PRNGKey(seed), qpos)
+        order = np.asarray(state["order"])
+        assert len(set(order[:5])) == 5 and order[5] == order[4] and order.max() < 12
+        goals = {tuple(g) for g in np.asarray(state["goals"][:5]).round(4)}
+        assert goals == {tuple(np.round(g, 4)) for g in np.asarray(simple["goals"][:5])}
+        orders.add(tuple(order))
+    assert len(orders) == 8
+
+
 def test_euler_to_quat():
     close(manip.euler_to_quat(jnp.zeros(3)), [1, 0, 0, 0])
     half = math.sqrt(0.5)
@@ -331,6 +638,207 @@ def test_dumbbell_rests_on_floor_and_cubes_on_palms():
     for name in ("left_cube_to_rotate", "right_cube_to_rotate"):
         assert d.body(name).xpos[2] > 1.0  # held by the palms, not fallen through
         close(m.body_subtreemass[manip.body_id(m, name)], 0.0625)
+
+
+def _held(env, model, data, steps):
+    """Steps CPU MuJoCo with the robot pinned at its keyframe pose (only the objects move)."""
+    nq, nv = env.robot.nq_robot, env.robot.nv_robot
+    for _ in range(steps):
+        data.qpos[:nq], data.qvel[:nv] = model.key_qpos[0][:nq], 0.0
+        mujoco.mj_step(model, data)
+
+
+def _free_pos(model, data, joint):
+    adr, _ = manip.free_joint_adr(model, joint)
+    return data.qpos[adr : adr + 3].copy()
+
+
+@pytest.mark.timeout(120)
+def test_insert_objects_rest_on_table_and_on_each_other():
+    for name, rim in (("insert_normal", 0.07), ("insert_small", 0.03)):
+        env = make(f"h1hand-{name}-v0")
+        m, d = env.mj_model, mujoco.MjData(env.mj_model)
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        _held(env, m, d, 300)
+        for joint in ("free_peg_a", "free_peg_b", "free_block_a"):
+            close(_free_pos(m, d, joint)[2], 0.95, tol=2e-3)  # the table top is at 0.95
+        # the block dropped across peg a's rim (walls 1 cm up from the base, top at `rim`)
+        adr, _ = manip.free_joint_adr(m, "free_block_a")
+        peg_a = _free_pos(m, d, "free_peg_a")
+        d.qpos[adr : adr + 3] = peg_a + np.array([0.0, 0.0, rim + 0.02])
+        d.qpos[adr + 3 : adr + 7] = (math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5))  # along x
+        d.qvel[:] = 0
+        _held(env, m, d, 300)
+        assert _free_pos(m, d, "free_block_a")[2] > peg_a[2] + rim - 2e-3, name
+
+
+@pytest.mark.timeout(120)
+def test_spoon_rests_on_table_and_in_cup():
+    env = make("spoon")
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    _held(env, m, d, 300)
+    close(_free_pos(m, d, "free_spoon")[2], 0.9 + 0.007 - 0.0035, tol=1e-3)  # handle r 0.007
+    # dropped into the cup: rests on its bottom (top at 0.9 + 0.03), inside the walls
+    adr, _ = manip.free_joint_adr(m, "free_spoon")
+    d.qpos[adr : adr + 3] = (0.75 - 0.05, -0.1, 1.0)
+    d.qvel[:] = 0
+    _held(env, m, d, 400)
+    plate = d.geom("spoon_plate").xpos
+    assert abs(plate[0] - 0.75) < 0.1 and abs(plate[1] + 0.1) < 0.1, plate
+    assert 0.925 < plate[2] < 0.97, plate
+
+
+@pytest.mark.timeout(120)
+def test_window_tool_rests_on_hands_and_touches_pane():
+    env = make("window")
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    _held(env, m, d, 300)  # HumanoidBench's tool pose lies on the fingers of the stand pose
+    assert _free_pos(m, d, "free_window_wiping_tool")[2] > 1.05
+    touched = {n for pair in _pairs(m, d) for n in pair}
+    assert any(n.startswith("lh_") for n in touched) and any(n.startswith("rh_") for n in touched)
+    # the tool turned so the wiper faces +x, pushed into the pane (x 0.95): C finds the pair,
+    # and the task's overlap query agrees, on the state and with the tool moved back
+    adr, _ = manip.free_joint_adr(m, "free_window_wiping_tool")
+    wipe, pane = m.geom("window_wipe_collision").id, m.geom("window_pane_collision").id
+    for x, touching in ((0.435, True), (0.38, False)):
+        d.qpos[adr : adr + 7] = (x, 0.0, 1.2, math.sqrt(0.5), 0.0, 0.0, -math.sqrt(0.5))
+        d.qpos[adr + 7 : adr + 11] = (1, 0, 0, 0)
+        mujoco.mj_forward(m, d)
+        pairs = {frozenset((c.geom1, c.geom2)) for c in d.contact[: d.ncon]}
+        assert (frozenset((wipe, pane)) in pairs) == touching, x
+        kin = types.SimpleNamespace(geom_xpos=jnp.asarray(d.geom_xpos),
+                                    geom_xmat=jnp.asarray(d.geom_xmat))  # fmt: skip
+        query = env.task._touch.any(kin)
+        assert bool(query) == touching, x
+
+
+@pytest.mark.timeout(120)
+def test_highbar_strong_hands_hold_the_bar():
+    """h1strong: every hand actuator but WRJ2 at kp 50, +-50 N m. Holding the keyframe, the
+    strong hands keep the robot on the bar for 1 s; h1hand's hands let it fall."""
+    env = make("h1strong-highbar_hard-v0")
+    m = env.mj_model
+    for i, name in enumerate(env.robot.actuator_names):
+        if name[:5] in ("lh_A_", "rh_A_"):
+            kp, force = (10.0, 10.0) if name.endswith("WRJ2") else (50.0, 50.0)
+            close(m.actuator_gainprm[i, 0], kp)
+            close(m.actuator_forcerange[i], [-force, force])
+    weak = HumanoidEnv(HighBarTask(), "h1hand")
+    for e, holds in ((env, True), (weak, False)):
+        m, d = e.mj_model, mujoco.MjData(e.mj_model)
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        d.ctrl[:] = e.robot.action_to_ctrl(e.robot.keyframe_action)
+        _settle(m, d, 500)
+        assert (d.site("head").xpos[2] > 2.2) == holds, d.site("head").xpos
+
+
+@pytest.mark.timeout(120)
+def test_hands_open_the_door():
+    """The robot, turned to face -x beyond the door with its arms raised forward, is moved
+    toward -x (kinematically, 0.2 m/s), with its arm colliders off: its hands push the door's
+    far face and the door swings open toward the corridor; with the hand colliders off as well
+    it stays shut."""
+    env = make("door")
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    nq, nv = env.robot.nq_robot, env.robot.nv_robot
+    door = m.joint("door_hinge").qposadr[0]
+    m.geom_conaffinity[env.robot.geom_ids["arms"]] = 0
+    for hands_on in (True, False):
+        if not hands_on:
+            m.geom_conaffinity[env.robot.geom_ids["hands"]] = 0
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        pose = m.key_qpos[0][:nq].copy()
+        pose[0:7] = (1.5, 0.25, 0.98, 0, 0, 0, 1)  # yaw pi
+        for side in ("left", "right"):
+            pose[m.joint(f"{side}_shoulder_pitch").qposadr[0]] = -1.57
+        for k in range(1200):  # the palms reach the door at root x ~1.2, the torso never does
+            pose[0] = 1.5 - 0.0004 * k
+            d.qpos[:nq], d.qvel[:nv] = pose, 0.0
+            d.qvel[0] = -0.2
+            mujoco.mj_step(m, d)
+        assert (d.qpos[door] > 0.3) == hands_on, d.qpos[door]
+        assert d.qpos[door] >= -1e-3  # never through the hinge limit
+
+
+@pytest.mark.timeout(120)
+def test_hand_pulls_the_drawer_open():
+    """The left palm put between the drawer's handle bar and its front, then moved toward the
+    robot (kinematically, 0.2 m/s for 1 s): it hooks the bar and the drawer slides out; with
+    the hand colliders off it stays shut. The cubes rest on their shelves meanwhile."""
+    env = make("cabinet")
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    nq, nv = env.robot.nq_robot, env.robot.nv_robot
+    drawer = m.joint("drawer_slide").qposadr[0]
+    for hands_on in (True, False):
+        if not hands_on:
+            m.geom_conaffinity[env.robot.geom_ids["hands"]] = 0
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        mujoco.mj_forward(m, d)
+        pose = m.key_qpos[0][:nq].copy()
+        pose[:3] += np.array([0.565, 0.0, 0.74]) - d.geom("lh_palm1").xpos  # bar at x 0.51
+        for _ in range(500):
+            pose[0] -= 0.0004
+            d.qpos[:nq], d.qvel[:nv] = pose, 0.0
+            d.qvel[0] = -0.2
+            mujoco.mj_step(m, d)
+        assert (d.qpos[drawer] > 0.15) == hands_on, d.qpos[drawer]
+        for name, z in (("lateral_cabinet_cube", 0.87), ("pullup_drawer_cube", 1.45)):
+            close(d.body(name).xpos[2], z, tol=2e-3)
+
+
+@pytest.mark.timeout(120)
+def test_truck_carries_the_robot_and_the_packages():
+    """The robot stands on the truck's bed (z 1.0) and on its ramp; the stacked packages stay
+    put; a package dropped over the table lands on it, one dropped beside the truck on the
+    floor."""
+    env = make("truck")
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    mujoco.mj_forward(m, d)
+    start = {n: d.body(n).xpos.copy() for n in ("package_a", "package_d", "package_e")}
+    _held(env, m, d, 300)
+    for name, pos in start.items():
+        close(d.body(name).xpos, pos, tol=5e-3)
+    for x, floor_z in ((6.0, 1.0), (3.3, 0.5)):  # on the bed; on the ramp's middle (z ~0.5)
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        d.qpos[0], d.qpos[2] = x, 0.98 + floor_z + 0.05
+        d.ctrl[:] = env.robot.action_to_ctrl(env.robot.keyframe_action)
+        _settle(m, d, 100)  # 0.2 s: it lands on the surface instead of falling through
+        assert d.qpos[2] > floor_z + 0.8, (x, d.qpos[2])
+    for xy, rest_z in (((2.0, -1.7), 0.95 + 0.2), ((3.0, 2.0), 0.2)):
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        adr, _ = manip.free_joint_adr(m, "free_package_e")  # a 0.4 m cube
+        d.qpos[adr : adr + 3] = (*xy, rest_z + 0.1)
+        _held(env, m, d, 300)
+        close(d.body("package_e").xpos[2], rest_z, tol=5e-3)
+
+
+@pytest.mark.timeout(120)
+def test_room_and_bookshelf_objects_rest():
+    """Room's six objects at a reset pose stand on the floor (the headphone tips onto its
+    side); the twelve bookshelf objects stay
+    on their boards (the headphone settles 4 cm: its ear-cup boxes are narrower than the
+    cylinders they replace)."""
+    env = make("room")
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    qpos, _ = env.task.init(jax.random.PRNGKey(0), jnp.asarray(m.key_qpos[0]))
+    d.qpos[:] = np.asarray(qpos)
+    start = d.qpos[76:].reshape(6, 7)[:, :3].copy()
+    _held(env, m, d, 300)
+    moved = np.abs(d.qpos[76:].reshape(6, 7)[:, :3] - start).max(axis=1)
+    assert (moved[[0, 1, 3, 4, 5]] < 0.02).all(), moved
+    assert moved[2] < 0.1, moved  # the headphone starts tilted (HumanoidBench's quaternion)
+    assert (np.abs(start[:, 1]) >= 1.2).all() and (np.diff(start[:, 0]) > 0).all()
+    env = make("bookshelf_simple")
+    m, d = env.mj_model, mujoco.MjData(env.mj_model)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    start = d.qpos[76:].reshape(12, 7)[:, :3].copy()
+    _held(env, m, d, 300)
+    moved = np.abs(d.qpos[76:].reshape(12, 7)[:, :3] - start).max(axis=1)
+    assert (moved < 0.045).all(), moved
 
 
 # -- compiled rollouts ---------------------------------------------------------------------------

@@ -12,7 +12,8 @@ so a change of machine load during the run moves both.
     .venv/bin/python -m experiments.bench.bench_tasks [--variant h1hand] [--num-envs 64]
         [--calls 10] [--rounds 3] [--tasks walk,pole] [--profile]
 
-`--tasks` takes locomotion and manipulation names (manipulation tasks are h1hand only).
+`--tasks` takes locomotion and manipulation names (a manipulation task runs on its own variant:
+h1hand, or h1strong for highbar_hard).
 `--profile` adds the cost of the manipulation contact profile: the robot and one free 0.2 m box
 in front of it, with the hands off (locomotion profile; the box touches the floor only), with the
 62 hand colliders on against the box, and with them on but `max_geom_pairs` 8.
@@ -172,7 +173,7 @@ def main() -> None:
             del stepper
     for name in chosen:
         row = rows[name]
-        variant = "h1hand" if row in tasks.MANIPULATION else args.variant
+        variant = row.robot if row in tasks.MANIPULATION else args.variant
         env = HumanoidEnv(row.task(), variant, success_bar=row.success_bar)
         stepper = Stepper(env, args.num_envs, args.calls)
         report(name, stepper, *side_by_side(stepper, bare, args.rounds))

@@ -1,9 +1,11 @@
 """The Unitree H1 robot (with or without two Shadow E3M5 hands) for MJX: model specs and accessors.
 
-Two variants, both with HumanoidBench's joint/actuator order and gains (spec §2, §5):
+Three variants, all with HumanoidBench's joint/actuator order and gains (spec §2, §5):
 
-  "h1hand": H1 + wrist yaw + two Shadow hands; nq 76, nv 75, nu 61, observation 151.
-  "h1":     H1 without hands or wrist yaw;       nq 26, nv 25, nu 19, observation 51.
+  "h1hand":   H1 + wrist yaw + two Shadow hands; nq 76, nv 75, nu 61, observation 151.
+  "h1strong": h1hand with HumanoidBench's stronger hand actuators (highbar_hard): every hand
+              actuator but WRJ2 has kp 50 and force range +-50 (h1hand: kp 0.4-8, +-1 to +-5).
+  "h1":       H1 without hands or wrist yaw;       nq 26, nv 25, nu 19, observation 51.
 
 Tasks build a scene on `robot_spec(...)` (robot + floor + options + keyframe), compile it, and wrap
 the compiled `MjModel` in `Robot`, which holds the static indices used by rewards and observations.
@@ -31,7 +33,9 @@ from mujoco import mjx
 from sirl_jax.envs.physics import Simulator
 
 ASSET_DIR = Path(__file__).resolve().parents[2] / "assets" / "h1_shadow"
-VARIANTS = {"h1hand": "h1_shadow.xml", "h1": "h1.xml"}
+VARIANTS = {"h1hand": "h1_shadow.xml", "h1strong": "h1_shadow.xml", "h1": "h1.xml"}
+HAND_VARIANTS = ("h1hand", "h1strong")
+STRONG_HAND_KP, STRONG_HAND_FORCE = 50.0, 50.0
 CONTACT_PROFILES = ("locomotion", "manipulation")
 
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1
@@ -129,7 +133,8 @@ def robot_spec(variant: str = "h1hand", contacts: str = "locomotion") -> mujoco.
     """A fresh MjSpec of the robot on a floor, with options, sensors and the "stand" keyframe.
 
     Args:
-      variant: "h1hand" (61 actuators) or "h1" (19 actuators, no hands).
+      variant: "h1hand" (61 actuators), "h1strong" (h1hand with strong hands) or "h1" (19
+        actuators, no hands).
       contacts: "locomotion" (feet, legs, body and arms touch the world; hands do not) or
         "manipulation" (the hand colliders touch the world too).
     Returns:
@@ -138,12 +143,17 @@ def robot_spec(variant: str = "h1hand", contacts: str = "locomotion") -> mujoco.
     _check("variant", variant, VARIANTS)
     _check("contacts", contacts, CONTACT_PROFILES)
     spec = mujoco.MjSpec.from_file(str(ASSET_DIR / VARIANTS[variant]))
-    if variant == "h1hand":
+    if variant in HAND_VARIANTS:
         on = set(GEOM_GROUPS["hands"]) if contacts == "manipulation" else set()
         for geom in spec.geoms:
             if geom.name in GEOM_GROUPS["hands"]:
                 geom.contype = ROBOT_CONTYPE if geom.name in on else 0
                 geom.conaffinity = ROBOT_CONAFFINITY if geom.name in on else 0
+    if variant == "h1strong":
+        for actuator in spec.actuators:
+            if actuator.name.startswith(("lh_A_", "rh_A_")) and not actuator.name.endswith("WRJ2"):
+                actuator.gainprm[0], actuator.biasprm[1] = STRONG_HAND_KP, -STRONG_HAND_KP
+                actuator.forcerange = (-STRONG_HAND_FORCE, STRONG_HAND_FORCE)
     return spec
 
 

@@ -156,7 +156,8 @@ def geom_mask(model: mujoco.MjModel, ids) -> np.ndarray:
 
 
 class HumanoidEnv(Env):
-    """One HumanoidBench task on the H1 (`variant` "h1hand": 61 actuators, or "h1": 19)."""
+    """One HumanoidBench task on the H1 (`variant` "h1hand" or "h1strong": 61 actuators, or
+    "h1": 19)."""
 
     def __init__(
         self,
@@ -166,8 +167,8 @@ class HumanoidEnv(Env):
         success_bar: float | None = None,
         physics: Physics | None = None,
     ):
-        if variant not in ("h1hand", "h1"):
-            raise ValueError(f"unknown robot variant {variant!r}; allowed: 'h1hand', 'h1'")
+        if variant not in h1.VARIANTS:
+            raise ValueError(f"unknown robot variant {variant!r}; allowed: {sorted(h1.VARIANTS)}")
         if episode_length < 1:
             raise ValueError(f"episode_length must be >= 1, got {episode_length}")
         self.task = task

@@ -1,5 +1,5 @@
 """HumanoidBench's 14 locomotion tasks, registered for both robot variants, and the manipulation
-tasks built so far (h1hand only).
+tasks built so far (h1hand; highbar_hard on h1strong).
 
 Ids: `h1hand-{task}-v0` (H1 + Shadow hands, 61-D action) and `h1-{task}-v0` (H1 without hands,
 19-D action); the short alias `{task}` names the h1hand id. Importing this package registers all
@@ -18,68 +18,102 @@ from sirl_jax.envs.registry import TaskSpec, register
 from sirl_jax.envs.tasks.balance import BalanceTask
 from sirl_jax.envs.tasks.basic import CrawlTask, ReachTask, WalkTask
 from sirl_jax.envs.tasks.basketball import BasketballTask
+from sirl_jax.envs.tasks.bookshelf import BookshelfTask
+from sirl_jax.envs.tasks.cabinet import CabinetTask
 from sirl_jax.envs.tasks.cube import CubeTask
+from sirl_jax.envs.tasks.door import DoorTask
+from sirl_jax.envs.tasks.highbar import HighBarTask
+from sirl_jax.envs.tasks.insert import InsertTask
 from sirl_jax.envs.tasks.obstacles import HurdleTask, MazeTask, PoleTask
 from sirl_jax.envs.tasks.package import PackageTask
 from sirl_jax.envs.tasks.powerlift import PowerliftTask
 from sirl_jax.envs.tasks.push import PushTask
+from sirl_jax.envs.tasks.room import RoomTask
 from sirl_jax.envs.tasks.sit import SitTask
+from sirl_jax.envs.tasks.spoon import SpoonTask
 from sirl_jax.envs.tasks.terrain import ClimbTask
+from sirl_jax.envs.tasks.truck import TruckTask
+from sirl_jax.envs.tasks.window import WindowTask
 
 VARIANTS = ("h1hand", "h1")
 
 
 @dataclasses.dataclass(frozen=True)
-class Locomotion:
-    """One row of HumanoidBench's task tables (spec §1)."""
+class TaskRow:
+    """One row of HumanoidBench's task tables (spec §1). `robot`: the variant of a manipulation
+    task (locomotion rows are registered for every variant in `VARIANTS`)."""
 
     name: str
     task: Callable[[], Task]
     success_bar: float
     termination: str
     episode_length: int = 1000
+    robot: str = "h1hand"
 
 
 LOCOMOTION = (
-    Locomotion("stand", lambda: WalkTask("stand", 0.0), 800, "root z < 0.2"),
-    Locomotion("walk", lambda: WalkTask("walk", R.WALK_SPEED), 700, "root z < 0.2"),
-    Locomotion("run", lambda: WalkTask("run", R.RUN_SPEED), 700, "root z < 0.2"),
-    Locomotion("reach", ReachTask, 12000, "never"),
-    Locomotion("hurdle", HurdleTask, 700, "root z < 0.2"),
-    Locomotion("crawl", CrawlTask, 700, "never"),
-    Locomotion("maze", MazeTask, 1200, "root z < 0.2"),
-    Locomotion("sit_simple", lambda: SitTask("sit_simple"), 750, "root z < 0.5"),
-    Locomotion("sit_hard", lambda: SitTask("sit_hard"), 750, "root z < 0.5"),
-    Locomotion(
+    TaskRow("stand", lambda: WalkTask("stand", 0.0), 800, "root z < 0.2"),
+    TaskRow("walk", lambda: WalkTask("walk", R.WALK_SPEED), 700, "root z < 0.2"),
+    TaskRow("run", lambda: WalkTask("run", R.RUN_SPEED), 700, "root z < 0.2"),
+    TaskRow("reach", ReachTask, 12000, "never"),
+    TaskRow("hurdle", HurdleTask, 700, "root z < 0.2"),
+    TaskRow("crawl", CrawlTask, 700, "never"),
+    TaskRow("maze", MazeTask, 1200, "root z < 0.2"),
+    TaskRow("sit_simple", lambda: SitTask("sit_simple"), 750, "root z < 0.5"),
+    TaskRow("sit_hard", lambda: SitTask("sit_hard"), 750, "root z < 0.5"),
+    TaskRow(
         "balance_simple", lambda: BalanceTask("balance_simple"), 800,
         "root z < 0.8, or a bad sphere/floor contact",
     ),
-    Locomotion(
+    TaskRow(
         "balance_hard", lambda: BalanceTask("balance_hard"), 800,
         "root z < 0.8, or a bad sphere/floor contact",
     ),
-    Locomotion("stair", lambda: ClimbTask("stair"), 700, "torso zz < 0.1"),
-    Locomotion("slide", lambda: ClimbTask("slide"), 700, "torso zz < 0.1"),
-    Locomotion("pole", PoleTask, 700, "root z < 0.5"),
+    TaskRow("stair", lambda: ClimbTask("stair"), 700, "torso zz < 0.1"),
+    TaskRow("slide", lambda: ClimbTask("slide"), 700, "torso zz < 0.1"),
+    TaskRow("pole", PoleTask, 700, "root z < 0.5"),
 )
 """The 14 tasks in HumanoidBench's order."""
 
 
 MANIPULATION = (
-    Locomotion("push", PushTask, 700, "box within 0.05 of the goal", 500),
-    Locomotion("cube", CubeTask, 370, "root z < 0.58, or either cube z < 0.6", 500),
-    Locomotion("powerlift", PowerliftTask, 800, "root z < 0.2"),
-    Locomotion(
+    TaskRow("push", PushTask, 700, "box within 0.05 of the goal", 500),
+    TaskRow("cube", CubeTask, 370, "root z < 0.58, or either cube z < 0.6", 500),
+    TaskRow("powerlift", PowerliftTask, 800, "root z < 0.2"),
+    TaskRow(
         "basketball", BasketballTask, 1200,
         "ball z < 0.5, root z < 0.5, or the ball within 0.05 of the hoop", 500,
     ),
-    Locomotion("package", PackageTask, 1500, "package within 0.1 of the destination"),
+    TaskRow("package", PackageTask, 1500, "package within 0.1 of the destination"),
+    TaskRow("spoon", SpoonTask, 650, "root z < 0.58"),
+    TaskRow("window", WindowTask, 650, "root z < 0.58, or the tool z < 0.58"),
+    TaskRow(
+        "insert_normal", lambda: InsertTask("insert_normal"), 350,
+        "root z < 0.5, or a peg or block-end site z < 0.5", 500,
+    ),
+    TaskRow(
+        "insert_small", lambda: InsertTask("insert_small"), 350,
+        "root z < 0.5, or a peg or block-end site z < 0.5", 500,
+    ),
+    TaskRow("highbar_hard", HighBarTask, 750, "head z < 2.0", robot="h1strong"),
+    TaskRow("door", DoorTask, 600, "root z < 0.58"),
+    TaskRow("cabinet", CabinetTask, 2500, "the fourth subtask complete"),
+    TaskRow("room", RoomTask, 400, "root z < 0.3"),
+    TaskRow("truck", TruckTask, 3000, "all five packages on the table"),
+    TaskRow(
+        "bookshelf_simple", lambda: BookshelfTask("bookshelf_simple"), 2000,
+        "root z < 0.58, the current object z < 0.5, or the fifth placement",
+    ),
+    TaskRow(
+        "bookshelf_hard", lambda: BookshelfTask("bookshelf_hard"), 2000,
+        "root z < 0.58, the current object z < 0.5, or the fifth placement",
+    ),
 )
-"""The manipulation tasks built so far (h1hand only), in HumanoidBench's units: obs sizes, episode
-lengths and success bars of spec §1."""
+"""The manipulation tasks built so far (h1hand; highbar_hard on h1strong), in HumanoidBench's
+units: obs sizes, episode lengths and success bars of spec §1."""
 
 
-def _factory(row: Locomotion, variant: str) -> Callable[..., HumanoidEnv]:
+def _factory(row: TaskRow, variant: str) -> Callable[..., HumanoidEnv]:
     def make_env(episode_length: int = row.episode_length) -> HumanoidEnv:
         return HumanoidEnv(
             row.task(), variant, episode_length=episode_length, success_bar=row.success_bar
@@ -110,11 +144,13 @@ for _row in LOCOMOTION:
 for _row in MANIPULATION:
     register(
         TaskSpec(
-            id=task_id("h1hand", _row.name),
-            factory=_factory(_row, "h1hand"),
+            id=task_id(_row.robot, _row.name),
+            factory=_factory(_row, _row.robot),
             episode_length=_row.episode_length,
             success_bar=_row.success_bar,
             aliases=(_row.name,),
-            description=f"HumanoidBench {_row.name} (h1hand); terminates: {_row.termination}",
+            description=(
+                f"HumanoidBench {_row.name} ({_row.robot}); terminates: {_row.termination}"
+            ),
         )
     )

@@ -16,6 +16,8 @@ a fixture has contype FIXTURE and conaffinity 0. MuJoCo pairs two geoms when
 
 from __future__ import annotations
 
+import itertools
+import math
 from collections.abc import Sequence
 
 import jax
@@ -54,17 +56,44 @@ def add_fixture(spec: mujoco.MjSpec, parent=None, **kwargs) -> mujoco.MjsGeom:
     return parent.add_geom(contype=FIXTURE, conaffinity=0, group=3, **kwargs)
 
 
-def add_table(spec: mujoco.MjSpec, pos: Sequence[float], top: Sequence[float]) -> None:
-    """HumanoidBench's table: a body at `pos` with a top box of half size `top` at z + 0.4 and
-    four 0.1 x 0.1 x 0.8 m legs inset 0.1 m from the top's corners (x +-0.4, y +-0.85 for the
-    0.5 x 1 top)."""
+def add_table(
+    spec: mujoco.MjSpec,
+    pos: Sequence[float],
+    top: Sequence[float],
+    top_z: float = 0.4,
+    leg_xy: Sequence[float] | None = None,
+    leg_z: float = -0.05,
+    leg_half_z: float = 0.4,
+) -> None:
+    """HumanoidBench's table: a body at `pos` with a top box of half size `top` at z + `top_z`
+    and four 0.1 x 0.1 m legs of half height `leg_half_z` at (+-x, +-y) = `leg_xy`, z `leg_z`
+    (default: inset 0.1 m in x and 0.15 m in y from the top's corners, push's x +-0.4, y +-0.85
+    for its 0.5 x 1 top)."""
     table = spec.worldbody.add_body(name="table", pos=pos)
-    add_fixture(spec, table, name="table_top_collision", pos=(0, 0, 0.4), size=top,
+    add_fixture(spec, table, name="table_top_collision", pos=(0, 0, top_z), size=top,
                 rgba=(0.6, 0.45, 0.3, 1))  # fmt: skip
-    lx, ly = top[0] - 0.1, top[1] - 0.15
+    lx, ly = (top[0] - 0.1, top[1] - 0.15) if leg_xy is None else leg_xy
     for k, (sx, sy) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
-        add_fixture(spec, table, name=f"table_leg_{k + 1}_collision", pos=(sx * lx, sy * ly, -0.05),
-                    size=(0.05, 0.05, 0.4), rgba=(0.3, 0.2, 0.1, 1))  # fmt: skip
+        add_fixture(spec, table, name=f"table_leg_{k + 1}_collision", pos=(sx * lx, sy * ly, leg_z),
+                    size=(0.05, 0.05, leg_half_z), rgba=(0.3, 0.2, 0.1, 1))  # fmt: skip
+
+
+def add_segmented_box(
+    parent: mujoco.MjsBody, name: str, pos: Sequence[float], half: Sequence[float],
+    segment: float, **kwargs,
+) -> list[str]:
+    """A static box cut along each axis into equal pieces no longer than `segment` (m), named
+    `{name}_{i}{j}{k}`: the same solid, but bounding spheres MJX's broad phase can rank (a 4 m
+    wall outranks every nearby pair). `kwargs` go to each piece's `add_geom` (contype, ...)."""
+    counts = [max(1, math.ceil(2 * h / segment)) for h in half]
+    piece = [h / n for h, n in zip(half, counts, strict=True)]
+    names = []
+    for idx in itertools.product(*(range(n) for n in counts)):
+        centre = [p - h + (2 * c + 1) * s for p, h, c, s in zip(pos, half, idx, piece, strict=True)]
+        names.append(f"{name}_{''.join(map(str, idx))}")
+        kwargs.setdefault("group", 3)
+        parent.add_geom(name=names[-1], type=BOX, pos=centre, size=piece, **kwargs)
+    return names
 
 
 def add_object_geom(
@@ -84,11 +113,18 @@ def add_mass_geom(body: mujoco.MjsBody, density: float, **kwargs) -> mujoco.MjsG
     return body.add_geom(contype=0, conaffinity=0, group=1, density=density, **kwargs)
 
 
-def set_inertial(body: mujoco.MjsBody, mass: float, inertia: Sequence[float]) -> None:
-    """An explicit inertial at the body origin (HumanoidBench's `<inertial pos="0 0 0" ...>`)."""
+def set_inertial(
+    body: mujoco.MjsBody,
+    mass: float,
+    inertia: Sequence[float],
+    ipos: Sequence[float] = (0.0, 0.0, 0.0),
+    iquat: Sequence[float] = (1.0, 0.0, 0.0, 0.0),
+) -> None:
+    """An explicit inertial (HumanoidBench's `<inertial pos="0 0 0" ...>`, or the compiled
+    inertial of an object whose mass comes from a mesh): mass, diagonal inertia, frame."""
     body.explicitinertial = True
     body.mass, body.inertia = mass, inertia
-    body.ipos, body.iquat = (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)
+    body.ipos, body.iquat = ipos, iquat
 
 
 def set_keyframe(

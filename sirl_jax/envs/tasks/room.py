@@ -1,0 +1,138 @@
+"""Tidy a walled room: gather six scattered objects (HumanoidBench Room)."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import mujoco
+from mujoco import mjx
+
+from sirl_jax.envs import rewards as R
+from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
+from sirl_jax.envs.tasks import manip, props
+
+OBJECTS = ("chair", "trophy", "headphone", "package_a", "package_b", "snow_globe")
+# Reset: object k's x ~ U(-2.5 + k, -1.5 + k), y ~ +-U(1.2, 3.5) (a random side); z and the
+# orientation are the keyframe's (HumanoidBench's body orientations, see RoomTask).
+X_LOW, Y_RANGE = -2.5, (1.2, 3.5)
+SPREAD_MARGIN = 3.0
+ROOT_TERMINATION = 0.3
+MAX_GEOM_PAIRS = 8
+_HEADPHONE_QUAT = (0.0733422, 0.0519076, -0.240058, -0.966591)  # HumanoidBench's reset value
+# Object keyframe poses: (z, quaternion). HumanoidBench's keyframe gives all but the headphone
+# the quaternion (0, 0, 0, 0); these are the orientations of its <body> elements.
+_POSES = {
+    "chair": (0.0, (1, 0, 0, 0)),
+    "trophy": (0.0, (1, 0, 0, 0)),
+    "headphone": (0.0, _HEADPHONE_QUAT),
+    "package_a": (0.1, (math.cos(-math.pi / 4), math.sin(-math.pi / 4), 0, 0)),  # euler x -pi/2
+    "package_b": (0.1, (math.cos(0.7859), 0, 0, math.sin(0.7859))),  # euler z 1.5718
+    "snow_globe": (0.0, (1, 0, 0, 0)),
+}
+_WALLS = (((-4.15, 0, 1.5), (0.15, 4, 1.5)), ((4.15, 0, 1.5), (0.15, 4, 1.5)),
+          ((0, 3.85, 1.5), (4, 0.15, 1.5)), ((0, -3.85, 1.5), (4, 0.15, 1.5)))  # fmt: skip
+WALL_SEGMENT = 2.0
+
+
+def room_reward(
+    head_z: jax.Array, zz: jax.Array, force: jax.Array, objects: jax.Array
+) -> tuple[jax.Array, dict[str, jax.Array]]:
+    """HumanoidBench Room: 0.2 small_control * stand + 0.8 tol(max(var x, var y), margin 3)
+    over the six objects' body positions (population variance, gaussian tolerance).
+
+    Args:
+      objects: [6, 3] the objects' xpos.
+    """
+    standing = R.standing(head_z)
+    upright = R.upright(zz, 0.9)
+    small_control = R.small_control(force)
+    spread = jnp.max(jnp.var(objects[:, :2], axis=0))
+    organized = R.tolerance(spread, margin=SPREAD_MARGIN)
+    reward = 0.2 * (small_control * standing * upright) + 0.8 * organized
+    terms = {
+        "stand_reward": standing * upright,
+        "small_control": small_control,
+        "standing": standing,
+        "upright": upright,
+        "room_object_organized": organized,
+    }
+    return reward, terms
+
+
+class RoomTask(Task):
+    """A walled 8 x 8 m room with a table and a shelf (static) and six free objects scattered at
+    reset to either side of the robot; reward for gathering them. Terminates when the root drops
+    below 0.3 m. Observation: full qpos and qvel (229).
+
+    Contacts: the objects touch the hands, the floor, the walls, the table and the shelf (not
+    each other); the walls also touch the robot's body, legs and arms (HumanoidBench collides
+    everything). Object colliders: `props` (cylinders as boxes and capsules, HumanoidBench's
+    masses)."""
+
+    name = "room"
+    metric_names = ("stand_reward", "small_control", "standing", "upright",
+                    "room_object_organized")  # fmt: skip
+    contacts = "manipulation"
+
+    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
+        manip.use_hand_contacts(spec)
+        for k, (pos, half) in enumerate(_WALLS):  # the robot's body, legs, arms; the objects
+            manip.add_segmented_box(spec.worldbody, f"wall_{k}", pos, half, WALL_SEGMENT,
+                                    contype=manip.FLOOR, conaffinity=0, rgba=(0.7, 0.7, 0.7, 0.4))
+        manip.add_table(spec, (2.7, -0.5, 0.45), (0.5, 0.5, 0.05), top_z=0.45, leg_xy=(0.4, 0.4),
+                        leg_z=0.0, leg_half_z=0.5)  # fmt: skip
+        props.add_shelf(spec, (2.7, 0.5, 0.0))
+        for name in OBJECTS:
+            body = spec.worldbody.add_body(name=name)
+            body.add_freejoint(name=f"free_{name}")
+            _OBJECT_BUILDERS[name](body)
+        objects = [v for n in OBJECTS for v in (0.0, 0.0, _POSES[n][0], *_POSES[n][1])]
+        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, objects)
+        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
+
+    def bind(self, model, robot) -> None:
+        self._bodies = jnp.array([manip.body_id(model, n) for n in OBJECTS])
+        self._adr = jnp.array([manip.free_joint_adr(model, f"free_{n}")[0] for n in OBJECTS])
+
+    def init(self, key, qpos):
+        k_x, k_y, k_side = jax.random.split(key, 3)
+        n = len(OBJECTS)
+        x = X_LOW + jnp.arange(n) + jax.random.uniform(k_x, (n,))
+        side = jnp.where(jax.random.bernoulli(k_side, 0.5, (n,)), 1.0, -1.0)
+        y = side * jax.random.uniform(k_y, (n,), minval=Y_RANGE[0], maxval=Y_RANGE[1])
+        qpos = qpos.at[self._adr].set(x).at[self._adr + 1].set(y)
+        return qpos, ()
+
+    def evaluate(self, robot, data: mjx.Data, task_state):
+        reward, terms = room_reward(
+            robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
+            data.xpos[self._bodies],
+        )  # fmt: skip
+        return reward, data.qpos[2] < ROOT_TERMINATION, task_state, terms
+
+
+def _chair(body) -> None:
+    """15.7 kg: mass from four legs, the seat, two back posts and the back rest; colliders:
+    HumanoidBench's two boxes (the seat with its legs, and the back)."""
+    legs = [((x, y, 0.225), (0.02, 0.02, 0.225)) for x in (0.19, -0.19) for y in (0.19, -0.19)]
+    parts = [*legs, ((0, 0, 0.45), (0.21, 0.21, 0.025)),
+             ((-0.23, 0.19, 0.6375), (0.02, 0.02, 0.2125)),
+             ((-0.23, -0.19, 0.6375), (0.02, 0.02, 0.2125)), ((-0.23, 0, 0.77), (0.02, 0.21, 0.08))]
+    for pos, half in parts:
+        manip.add_mass_geom(body, props.DENSITY, type=manip.BOX, pos=pos, size=half,
+                            rgba=props.WOOD)  # fmt: skip
+    seat_and_back = (((-0.23, 0, 0.65), (0.02, 0.21, 0.2)), ((0, 0, 0.2375), (0.21, 0.21, 0.2375)))
+    for pos, half in seat_and_back:
+        manip.add_object_geom(body, type=manip.BOX, pos=pos, size=half, density=0.0)
+
+
+_OBJECT_BUILDERS = {
+    "chair": _chair,
+    "trophy": props.trophy,
+    "headphone": lambda body: props.headphone(body, y_offset=-0.05),
+    "package_a": props.box((0.2, 0.1, 0.15)),
+    "package_b": props.box((0.25, 0.2, 0.1)),
+    "snow_globe": props.snow_globe,
+}
