@@ -5,7 +5,8 @@ For each task: E envs, one step with a = 0 from the reset (its mean reward is Hu
 auto-resets. Reports the mean length of the episodes that terminated within the T steps, the
 number of them, the mean per-step reward under random actions, and the mean return of the
 episodes that ended (terminated or truncated) within the T steps (`--steps` at least the
-episode length counts full-length episodes too). Manipulation tasks run on h1hand.
+episode length counts full-length episodes too). Manipulation tasks run on their own variant
+(h1hand; h1strong for highbar_hard).
 
     .venv/bin/python -m experiments.random_policy_stats [--variant h1hand] [--num-envs 64]
         [--steps 200] [--tasks walk,stand] [--budget-s 1800]

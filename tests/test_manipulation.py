@@ -63,12 +63,13 @@ HB = {
     "truck": (1000, 3000, 216, 111, 105),
     "bookshelf_simple": (1000, 2000, 308, 160, 147),
     "bookshelf_hard": (1000, 2000, 308, 160, 147),
+    "kitchen": (500, 4, 97, 97, 95),
 }
 NAMES = [row.name for row in tasks.MANIPULATION]
 IDS = {row.name: tasks.task_id(row.robot, row.name) for row in tasks.MANIPULATION}
 CI_IDS = ("h1hand-push-v0", "h1hand-cube-v0", "h1hand-insert_normal-v0")
 ROOT_Z_TERMINATION = {"powerlift": 0.2, "spoon": 0.58, "insert_normal": 0.5}
-ONLY_SUCCESS_ENDS = ("push", "package", "cabinet", "truck")
+ONLY_SUCCESS_ENDS = ("push", "package", "cabinet", "truck", "kitchen")
 
 
 def _param(task_id: str):

@@ -12,7 +12,8 @@ state part and the reset state after its kinematics, see the `Task` attributes):
   termination and metrics from the data the last `mjx.step` returned (kinematics of the forward
   pass at the start of the last substep, qpos/qvel after it: HumanoidBench's convention).
 - observation: full qpos and qvel (robot and task objects, root x and y included) plus the
-  task's extras.
+  task's extras; a task may keep the robot's part only (`Task.full_state_obs`) or positions
+  only (`Task.qvel_obs`).
 
 The jitted programs can take the `mjx.Model` as an argument (`with_model`), so a test or a
 benchmark can reuse one compiled program for every model of the same shapes.
@@ -68,6 +69,8 @@ class Task(abc.ABC):
     """Half-width of the uniform noise added to every keyframe qpos entry at reset."""
     full_state_obs: bool = True
     """Observation = full qpos and qvel (objects included) + extras; False: the robot's only."""
+    qvel_obs: bool = True
+    """False: the state part of the observation is positions only (kitchen)."""
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         """Adds the task scene to `spec` (default: none)."""
@@ -183,9 +186,11 @@ class HumanoidEnv(Env):
         self._set_physics(physics or Physics())
         self._control_step = h1.make_control_step(FRAME_SKIP)
         self._qpos0 = jnp.asarray(self.mj_model.key_qpos[0], jnp.float32)
-        nq, nv = self.mj_model.nq, self.mj_model.nv
-        state_size = nq + nv if task.full_state_obs else self.robot.obs_size
-        self._obs_size = state_size + task.extra_obs_size
+        if task.full_state_obs:
+            nq, nv = self.mj_model.nq, self.mj_model.nv
+        else:
+            nq, nv = self.robot.nq_robot, self.robot.nv_robot
+        self._obs_size = nq + (nv if task.qvel_obs else 0) + task.extra_obs_size
 
     def _set_physics(self, physics: Physics) -> None:
         self.sim = Simulator(self.mj_model, physics)
@@ -263,7 +268,9 @@ class HumanoidEnv(Env):
 
     def _observe(self, data: mjx.Data, task_state: Any) -> jax.Array:
         extra = self.task.extra_obs(self.robot, data, task_state)
-        state = (
-            [data.qpos, data.qvel] if self.task.full_state_obs else [self.robot.observation(data)]
-        )
+        if self.task.full_state_obs:
+            qpos, qvel = data.qpos, data.qvel
+        else:
+            qpos, qvel = data.qpos[self.robot.qpos_slice], data.qvel[self.robot.qvel_slice]
+        state = [qpos, qvel] if self.task.qvel_obs else [qpos]
         return jnp.concatenate([*state, extra]).astype(jnp.float32)

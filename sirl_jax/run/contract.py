@@ -100,7 +100,7 @@ def _termination(task_id: str) -> dict:
     """The HumanoidBench termination rule of a locomotion task, where it is a state test."""
     from sirl_jax.envs.tasks import LOCOMOTION
 
-    name = re.sub(r"^h1(hand)?-|-v0$", "", task_id)
+    name = re.sub(r"^h1(hand|strong)?-|-v0$", "", task_id)
     row = next((r for r in LOCOMOTION if r.name == name), None)
     rule = row.termination if row is not None else ""
     if rule == "never":
@@ -156,7 +156,10 @@ def env_parts(env, task_id: str) -> dict:
     if isinstance(env, HumanoidEnv):
         parts = _humanoid_parts(env, task_id)
         qpos, qvel = joint_fields(env.mj_model)
-        parts["fields"] = qpos + qvel + parts["fields"]
+        if not env.task.full_state_obs:  # the robot's joints only (it owns qpos[:nq_robot])
+            qpos = [f for f in qpos if f["adr"] < env.robot.nq_robot]
+            qvel = [f for f in qvel if f["adr"] < env.robot.nv_robot]
+        parts["fields"] = qpos + (qvel if env.task.qvel_obs else []) + parts["fields"]
         return parts
     raise UsageError(f"task {task_id} ({type(env).__name__}) has no observation contract; "
                      "export supports the pendulum and the HumanoidBench tasks")  # fmt: skip

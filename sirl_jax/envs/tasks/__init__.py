@@ -1,5 +1,5 @@
-"""HumanoidBench's 14 locomotion tasks, registered for both robot variants, and the manipulation
-tasks built so far (h1hand; highbar_hard on h1strong).
+"""HumanoidBench's 14 locomotion tasks, registered for both robot variants, and its 17 manipulation
+tasks (h1hand; highbar_hard on h1strong).
 
 Ids: `h1hand-{task}-v0` (H1 + Shadow hands, 61-D action) and `h1-{task}-v0` (H1 without hands,
 19-D action); the short alias `{task}` names the h1hand id. Importing this package registers all
@@ -23,6 +23,7 @@ from sirl_jax.envs.tasks.cabinet import CabinetTask
 from sirl_jax.envs.tasks.cube import CubeTask
 from sirl_jax.envs.tasks.door import DoorTask
 from sirl_jax.envs.tasks.highbar import HighBarTask
+from sirl_jax.envs.tasks.kitchen import KitchenTask
 from sirl_jax.envs.tasks.insert import InsertTask
 from sirl_jax.envs.tasks.obstacles import HurdleTask, MazeTask, PoleTask
 from sirl_jax.envs.tasks.package import PackageTask
@@ -108,9 +109,13 @@ MANIPULATION = (
         "bookshelf_hard", lambda: BookshelfTask("bookshelf_hard"), 2000,
         "root z < 0.58, the current object z < 0.5, or the fifth placement",
     ),
+    TaskRow(
+        "kitchen", KitchenTask, 4,
+        "all four subtasks done (microwave, kettle, bottom burner, light switch, in order)", 500,
+    ),
 )
-"""The manipulation tasks built so far (h1hand; highbar_hard on h1strong), in HumanoidBench's
-units: obs sizes, episode lengths and success bars of spec §1."""
+"""HumanoidBench's 17 manipulation tasks (h1hand; highbar_hard on h1strong), with the episode
+lengths and success bars of spec §1."""
 
 
 def _factory(row: TaskRow, variant: str) -> Callable[..., HumanoidEnv]:
