@@ -10,7 +10,7 @@ the task and of the (already compiled) bare robot, ratio = median task rate / me
 so a change of machine load during the run moves both.
 
     .venv/bin/python -m experiments.bench.bench_tasks [--variant h1hand] [--num-envs 64]
-        [--calls 10] [--rounds 3] [--tasks walk,pole] [--profile]
+        [--calls 10] [--rounds 3] [--tasks walk,pole] [--profile] [--max-geom-pairs K]
 
 `--tasks` takes locomotion and manipulation names (a manipulation task runs on its own variant:
 h1hand, or h1strong for highbar_hard).
@@ -18,22 +18,28 @@ h1hand, or h1strong for highbar_hard).
 in front of it, with the hands off (locomotion profile; the box touches the floor only), with the
 62 hand colliders on against the box, and with them on but `max_geom_pairs` 8.
 
+`--max-geom-pairs K` adds, after each task, the same task with MJX keeping K candidate pairs per
+collision function (the lever for a scene with many box colliders).
+
 Compiles are not cached (a cached compile would time a disk read).
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import statistics
 import time
 from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
+import mujoco
 
 import sirl_jax.envs.tasks as tasks
 from sirl_jax.envs.base import EnvState, VecEnv
 from sirl_jax.envs.humanoid import HumanoidEnv, Task, contact_arrays, set_max_geom_pairs
+from sirl_jax.envs.physics import Physics
 from sirl_jax.envs.tasks import manip
 
 try:  # the contact slots MJX allocates per env (its collision driver's own count)
@@ -122,6 +128,19 @@ class Stepper:
         return self.num_envs * len(self.actions) / (time.perf_counter() - t0)
 
 
+def with_max_geom_pairs(env: HumanoidEnv, k: int) -> HumanoidEnv:
+    """A copy of `env` whose MJX model keeps k candidate pairs per collision function (the
+    compiled model's `max_geom_pairs` numeric, edited before `mjx.put_model`)."""
+    i = mujoco.mj_name2id(env.mj_model, mujoco.mjtObj.mjOBJ_NUMERIC, "max_geom_pairs")
+    if i < 0:
+        raise SystemExit(f"{env.task.name} sets no max_geom_pairs")
+    model = copy.deepcopy(env.mj_model)
+    model.numeric_data[model.numeric_adr[i]] = k
+    out = copy.copy(env)
+    out.mj_model = model
+    return out.with_physics(Physics())
+
+
 def side_by_side(task: Stepper, bare: Stepper, rounds: int) -> tuple[float, float]:
     """(median task steps/s, median task / bare ratio) over `rounds` alternating blocks."""
     task_rates, bare_rates = [], []
@@ -140,6 +159,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--tasks", default="", help="comma-separated task names (default: all)")
     parser.add_argument("--profile", action="store_true", help="measure the contact profiles")
+    parser.add_argument("--max-geom-pairs", type=int, default=0,
+                        help="also measure each task with this max_geom_pairs (a lever test)")
     args = parser.parse_args()
     if args.calls < 1 or args.rounds < 1:
         raise SystemExit(f"--calls and --rounds must be >= 1, got {args.calls}, {args.rounds}")
@@ -178,6 +199,12 @@ def main() -> None:
         stepper = Stepper(env, args.num_envs, args.calls)
         report(name, stepper, *side_by_side(stepper, bare, args.rounds))
         del stepper
+        if args.max_geom_pairs:
+            stepper = Stepper(with_max_geom_pairs(env, args.max_geom_pairs), args.num_envs,
+                              args.calls)  # fmt: skip
+            report(f"{name} k{args.max_geom_pairs}", stepper,
+                   *side_by_side(stepper, bare, args.rounds))  # fmt: skip
+            del stepper
 
 
 if __name__ == "__main__":
