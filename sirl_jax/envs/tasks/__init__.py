@@ -23,8 +23,8 @@ from sirl_jax.envs.tasks.cabinet import CabinetTask
 from sirl_jax.envs.tasks.cube import CubeTask
 from sirl_jax.envs.tasks.door import DoorTask
 from sirl_jax.envs.tasks.highbar import HighBarTask
-from sirl_jax.envs.tasks.kitchen import KitchenTask
 from sirl_jax.envs.tasks.insert import InsertTask
+from sirl_jax.envs.tasks.kitchen import KitchenTask
 from sirl_jax.envs.tasks.obstacles import HurdleTask, MazeTask, PoleTask
 from sirl_jax.envs.tasks.package import PackageTask
 from sirl_jax.envs.tasks.powerlift import PowerliftTask

@@ -163,7 +163,7 @@ class BasketballTask(Task):
         return data.replace(qpos=qpos, qvel=qvel), task_state
 
     def evaluate(self, robot, data: mjx.Data, task_state):
-        hands = jnp.stack([robot.site_pos(data, "left_hand"), robot.site_pos(data, "right_hand")])
+        hands = manip.hand_sites(robot, data)
         ball = data.xpos[self._ball]
         hoop = data.site_xpos[self._hoop]
         touched = R.any_contact(*contact_arrays(data), self._ball_mask)

@@ -161,7 +161,7 @@ class BookshelfTask(Task):
     def evaluate(self, robot, data: mjx.Data, state):
         index = state["index"]
         obj = data.xpos[self._bodies[state["order"][index]]]
-        hands = jnp.stack([robot.site_pos(data, "left_hand"), robot.site_pos(data, "right_hand")])
+        hands = manip.hand_sites(robot, data)
         reward, new_index, terms = bookshelf_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             obj, state["goals"][index], hands, index,

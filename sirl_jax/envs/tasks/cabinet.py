@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import math
-
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -30,7 +28,6 @@ BONUS = 100.0  # x k on completing subtask k
 N_SUBTASKS = 4
 MAX_GEOM_PAIRS = 12
 
-_X = (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)  # a cylinder's axis onto +x
 Box = tuple[tuple[float, float, float], tuple[float, float, float], float | None]
 # (pos, half size, mass or None for density 1000) in the part's body frame.
 _DRAWER: tuple[Box, ...] = (
@@ -236,6 +233,6 @@ def _moving_part(body: mujoco.MjsBody, boxes: tuple[Box, ...], posts) -> None:
                       group=3, rgba=_WOOD, **inertia)  # fmt: skip
     for pos in posts:
         manip.add_mass_geom(body, 1000.0, type=manip.CYLINDER, pos=pos, size=(0.02, 0.05, 0),
-                            quat=_X, rgba=(0.1, 0.1, 0.1, 1))  # fmt: skip
-        body.add_geom(type=manip.CAPSULE, pos=pos, size=(0.02, 0.03, 0), quat=_X,
+                            quat=manip.X_AXIS, rgba=(0.1, 0.1, 0.1, 1))  # fmt: skip
+        body.add_geom(type=manip.CAPSULE, pos=pos, size=(0.02, 0.03, 0), quat=manip.X_AXIS,
                       contype=contype, conaffinity=0, group=3, density=0.0)  # fmt: skip

@@ -112,7 +112,7 @@ class CubeTask(Task):
         return qpos, manip.euler_to_quat(target)
 
     def evaluate(self, robot, data: mjx.Data, target):
-        hands = jnp.stack([robot.site_pos(data, "left_hand"), robot.site_pos(data, "right_hand")])
+        hands = manip.hand_sites(robot, data)
         cubes = data.xpos[jnp.array(self._cubes)]
         reward, terms = cube_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),

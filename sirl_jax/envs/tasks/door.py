@@ -40,10 +40,7 @@ HATCH_OPEN, HATCH_MARGIN = (0.75, 2.0), 0.75
 HAND_BOUND, HAND_MARGIN = 0.25, 1.0
 ROOT_TERMINATION = 0.58
 MAX_GEOM_PAIRS = 12
-_AXES = {
-    "x": (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0),
-    "y": (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0),
-}  # rotate a geom's z axis onto +x / +y
+_AXES = {"x": manip.X_AXIS, "y": manip.Y_AXIS}
 
 
 def door_reward(
@@ -145,7 +142,7 @@ class DoorTask(Task):
         self._hatch = manip.body_id(model, "door_hatch")
 
     def evaluate(self, robot, data: mjx.Data, task_state):
-        hands = jnp.stack([robot.site_pos(data, "left_hand"), robot.site_pos(data, "right_hand")])
+        hands = manip.hand_sites(robot, data)
         reward, terms = door_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             data.qpos[self._door_q], data.qpos[self._hatch_q], data.xpos[self._hatch], hands,

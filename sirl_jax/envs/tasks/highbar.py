@@ -29,7 +29,6 @@ _HAND = (
 ROBOT_QPOS = (0.27, 0.0, 1.62, 1, 0, 0, 0) + (0.0,) * 11 + (
     *_ARM["left"], *_HAND, *_ARM["right"], *_HAND,
 )  # fmt: skip
-_Y_AXIS = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)  # rotates the geom's z axis onto +y
 
 
 def highbar_reward(
@@ -76,7 +75,7 @@ class HighBarTask(Task):
                          contype=0, conaffinity=0, group=1, rgba=(0.2, 0.2, 0.2, 1))  # fmt: skip
         # touches the hands (manip.HANDS) and the rest of the robot (the floor's bits)
         bar.add_geom(name="holding_bar_collision", type=manip.CAPSULE,
-                     size=(BAR_RADIUS, BAR_HALF, 0), pos=(x, 0.0, BAR_POS[2]), quat=_Y_AXIS,
+                     size=(BAR_RADIUS, BAR_HALF, 0), pos=(x, 0.0, BAR_POS[2]), quat=manip.Y_AXIS,
                      contype=manip.HANDS | manip.FLOOR, conaffinity=0, group=3,
                      rgba=(0.7, 0.7, 0.72, 1))  # fmt: skip
         manip.set_keyframe(spec, ROBOT_QPOS, ())

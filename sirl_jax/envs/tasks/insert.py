@@ -151,7 +151,7 @@ class InsertTask(Task):
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         pegs, ends = data.site_xpos[self._pegs], data.site_xpos[self._ends]
-        hands = jnp.stack([robot.site_pos(data, "left_hand"), robot.site_pos(data, "right_hand")])
+        hands = manip.hand_sites(robot, data)
         reward, terms = insert_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             ends, pegs, hands,

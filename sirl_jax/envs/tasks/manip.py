@@ -38,6 +38,11 @@ CAPSULE = mujoco.mjtGeom.mjGEOM_CAPSULE
 CYLINDER = mujoco.mjtGeom.mjGEOM_CYLINDER
 SPHERE = mujoco.mjtGeom.mjGEOM_SPHERE
 
+X_AXIS = (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)
+"""Quaternion that turns a geom's z axis onto +x (MJCF `zaxis="1 0 0"`)."""
+Y_AXIS = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)
+"""Quaternion that turns a geom's z axis onto +y (MJCF `zaxis="0 1 0"`)."""
+
 # HumanoidBench's task keyframes put the robot in the stand pose; some set arm joints as well.
 STAND_ROBOT_QPOS = (0, 0, 0.98, 1, 0, 0, 0) + (0, 0, -0.4, 0.8, -0.4) * 2 + (0,) * 59
 
@@ -158,6 +163,11 @@ def body_id(model: mujoco.MjModel, name: str) -> int:
     if i < 0:
         raise ValueError(f"the model has no body named {name!r}")
     return i
+
+
+def hand_sites(robot, data) -> jax.Array:
+    """[2, 3] the left_hand and right_hand sites."""
+    return jnp.stack([robot.site_pos(data, "left_hand"), robot.site_pos(data, "right_hand")])
 
 
 def euler_to_quat(angles: jax.Array) -> jax.Array:

@@ -106,7 +106,7 @@ class PackageTask(Task):
         return qpos, jnp.append(dest, DESTINATION_Z)
 
     def _hands(self, robot, data):
-        return jnp.stack([robot.site_pos(data, "left_hand"), robot.site_pos(data, "right_hand")])
+        return manip.hand_sites(robot, data)
 
     def evaluate(self, robot, data: mjx.Data, destination):
         package = data.qpos[self._qpos : self._qpos + 3]

@@ -20,7 +20,6 @@ WEIGHTS = ((0.2, 0.2, 0.75), (0.2, 0.2, -0.75))
 LIFT_BOUNDS, LIFT_MARGIN = (1.9, 2.1), 2.0
 ROOT_TERMINATION = 0.2
 MAX_GEOM_PAIRS = 8
-_Y_AXIS = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)  # rotates the geom's z axis onto +y
 
 
 def powerlift_reward(
@@ -67,14 +66,15 @@ class PowerliftTask(Task):
         body.add_freejoint(name="free_dumbbell")
         for radius, half, y in (BAR, *WEIGHTS):
             manip.add_mass_geom(body, 1000.0, type=manip.CYLINDER, size=(radius, half, 0),
-                                pos=(0, y, 0), quat=_Y_AXIS, rgba=(0.5, 0.5, 0.55, 1))  # fmt: skip
+                                pos=(0, y, 0), quat=manip.Y_AXIS,
+                                rgba=(0.5, 0.5, 0.55, 1))  # fmt: skip
         radius, half, _ = BAR
         manip.add_object_geom(body, name="bar_collision", type=manip.CAPSULE,
-                              size=(radius, half, 0), quat=_Y_AXIS, density=0.0)  # fmt: skip
+                              size=(radius, half, 0), quat=manip.Y_AXIS, density=0.0)  # fmt: skip
         for k, (radius, half, y) in enumerate(WEIGHTS):
             manip.add_object_geom(body, hands=False, name=f"weight_{k}_collision",
                                   type=manip.CYLINDER, size=(radius, half, 0), pos=(0, y, 0),
-                                  quat=_Y_AXIS, density=0.0)  # fmt: skip
+                                  quat=manip.Y_AXIS, density=0.0)  # fmt: skip
         manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, (*DUMBBELL_POS, 1, 0, 0, 0))
         set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 

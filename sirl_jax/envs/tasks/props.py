@@ -21,7 +21,6 @@ DENSITY = 1000.0
 WOOD = (0.55, 0.4, 0.28, 1)
 _GREY = {"rgba": (0.59, 0.61, 0.62, 1)}
 _RED = {"rgba": (0.25, 0, 0, 1)}
-Y_AXIS = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)  # a geom's z axis onto +y
 
 
 def add_shelf(spec: mujoco.MjSpec, pos: Sequence[float]) -> mujoco.MjsBody:
@@ -74,7 +73,7 @@ def headphone(body: mujoco.MjsBody, y_offset: float = 0.0) -> None:
     """2.91 kg: two ear cups (discs r 0.08 along y), two arms and a band. `y_offset`: room's
     headphone has its geoms in a child body 0.05 m to -y."""
     for y in (-0.07, 0.07):
-        disc(body, (0.1, y + y_offset, 0.08), 0.08, 0.025, quat=Y_AXIS, **_RED)
+        disc(body, (0.1, y + y_offset, 0.08), 0.08, 0.025, quat=manip.Y_AXIS, **_RED)
         manip.add_object_geom(body, type=manip.BOX, pos=(0.2, y + y_offset, 0.08),
                               size=(0.1, 0.02, 0.02), density=DENSITY, **_RED)  # fmt: skip
     manip.add_object_geom(body, type=manip.BOX, pos=(0.3, y_offset, 0.08),

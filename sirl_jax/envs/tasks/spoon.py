@@ -26,7 +26,6 @@ SPIN_MARGIN, HAND_BOUND, HAND_MARGIN = 0.15, 0.2, 0.5
 IN_CUP, IN_CUP_Z = 0.1, 0.1  # |plate - cup| < 0.1 per axis, z measured from cup z + 0.1
 ROOT_TERMINATION = 0.58
 MAX_GEOM_PAIRS = 8
-_X_AXIS = (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)  # rotates the geom's z axis onto +x
 # The cup (static): (pos, half size) of its walls, bottom and the handle's two bars.
 _CUP_BOXES = (
     ((0, 0.1, 0.1), (0.12, 0.02, 0.1)), ((0, -0.1, 0.1), (0.12, 0.02, 0.1)),
@@ -117,12 +116,12 @@ class SpoonTask(Task):
         p_radius, p_half, p_x = PLATE
         steel = (0.75, 0.75, 0.78, 1)
         manip.add_mass_geom(spoon, DENSITY, name="spoon_handle", type=manip.CYLINDER,
-                            size=(radius, half, 0), pos=(0, 0, 0.0035), quat=_X_AXIS,
+                            size=(radius, half, 0), pos=(0, 0, 0.0035), quat=manip.X_AXIS,
                             rgba=steel)  # fmt: skip
         manip.add_mass_geom(spoon, DENSITY, name="spoon_plate", type=manip.CYLINDER,
                             size=(p_radius, p_half, 0), pos=(p_x, 0, 0.0035), rgba=steel)
         manip.add_object_geom(spoon, type=manip.CAPSULE, size=(radius, half - radius, 0),
-                              pos=(0, 0, 0.0035), quat=_X_AXIS, density=0.0)  # fmt: skip
+                              pos=(0, 0, 0.0035), quat=manip.X_AXIS, density=0.0)  # fmt: skip
         side = p_radius * math.sqrt(math.pi) / 2  # a square of the disc's area
         manip.add_object_geom(spoon, type=manip.BOX, size=(side, side, p_half),
                               pos=(p_x, 0, 0.0035), density=0.0)  # fmt: skip
@@ -137,7 +136,7 @@ class SpoonTask(Task):
         return qpos, jnp.zeros((), jnp.int32)
 
     def evaluate(self, robot, data: mjx.Data, step):
-        hands = jnp.stack([robot.site_pos(data, "left_hand"), robot.site_pos(data, "right_hand")])
+        hands = manip.hand_sites(robot, data)
         reward, terms = spoon_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             hands, data.geom_xpos[self._handle], data.geom_xpos[self._plate],

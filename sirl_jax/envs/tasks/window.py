@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -27,7 +25,6 @@ HEAD_MOVE, HEAD_MOVE_MARGIN = 0.4, 0.1
 HAND_BOUND, HAND_MARGIN = 0.2, 0.5
 ROOT_TERMINATION, TOOL_TERMINATION = 0.58, 0.58
 MAX_GEOM_PAIRS = 8
-_Y_AXIS = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)  # rotates the geom's z axis onto +y
 _WIPE_SITES = tuple(f"wipe_contact_site_{c}" for c in "abcde")
 _WIPE_SITE_POS = ((0.1, 0.04, 0.07), (-0.1, 0.04, 0.07), (0.1, 0.04, -0.03), (-0.1, 0.04, -0.03),
                   (0.0, 0.04, 0.02))  # fmt: skip
@@ -125,9 +122,9 @@ class WindowTask(Task):
         tool.add_freejoint(name="free_window_wiping_tool")
         radius, half = TOOL_ROD
         manip.add_mass_geom(tool, DENSITY, type=manip.CYLINDER, size=(radius, half, 0),
-                            pos=(0, 0, 0.02), quat=_Y_AXIS, rgba=(0.75, 0.75, 0.78, 1))
+                            pos=(0, 0, 0.02), quat=manip.Y_AXIS, rgba=(0.75, 0.75, 0.78, 1))
         manip.add_object_geom(tool, type=manip.CAPSULE, size=(radius, half - radius, 0),
-                              pos=(0, 0, 0.02), quat=_Y_AXIS, density=0.0)  # fmt: skip
+                              pos=(0, 0, 0.02), quat=manip.Y_AXIS, density=0.0)  # fmt: skip
         wiper = tool.add_body(name="window_wiper_sphere", pos=WIPER_POS)
         wiper.add_joint(type=mujoco.mjtJoint.mjJNT_BALL, limited=mujoco.mjtLimited.mjLIMITED_TRUE,
                         range=(0.0, WIPER_LIMIT))  # fmt: skip
@@ -160,7 +157,7 @@ class WindowTask(Task):
         return data, robot.site_pos(data, "head")
 
     def evaluate(self, robot, data: mjx.Data, head0):
-        hands = jnp.stack([robot.site_pos(data, "left_hand"), robot.site_pos(data, "right_hand")])
+        hands = manip.hand_sites(robot, data)
         tool = data.xpos[self._tool]
         reward, terms = window_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
