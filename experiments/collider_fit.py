@@ -37,12 +37,24 @@ from sirl_jax.envs import h1
 G = mujoco.mjtGeom
 
 
-def _colliders(m: mujoco.MjModel) -> dict[str, list[int]]:
+def _colliders(m: mujoco.MjModel, names=None) -> dict[str, list[int]]:
+    """Collision geom ids by body name: the geoms named in `names` (ours: every robot group,
+    whether or not a task switches it on), else those with a contype or conaffinity bit."""
     out: dict[str, list[int]] = {}
     for g in range(m.ngeom):
-        if (m.geom_contype[g] or m.geom_conaffinity[g]) and m.geom_bodyid[g] != 0:
+        on = (
+            m.geom(g).name in names
+            if names is not None
+            else m.geom_contype[g] or m.geom_conaffinity[g]
+        )
+        if on and m.geom_bodyid[g] != 0:
             out.setdefault(m.body(m.geom_bodyid[g]).name, []).append(g)
     return out
+
+
+def _ours(model: mujoco.MjModel) -> dict[str, list[int]]:
+    groups = h1.Robot(model).geom_groups
+    return _colliders(model, {n for names in groups.values() for n in names})
 
 
 def _local_sdf(gtype: int, size: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -109,9 +121,10 @@ class _Geom:
             t = tri[pick]
             local = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
             self.local_surface = np.concatenate([local, hull.points[hull.vertices]])
-            self._tree = cKDTree(self.local_surface)
         else:
             self.local_surface = _primitive_surface(self.type, self.size, n, rng)
+            self.planes = None  # a primitive's hull is made from its samples when a fit needs it
+        self._tree = cKDTree(self.local_surface)
 
     def surface(self) -> np.ndarray:
         return self.local_surface @ self.mat.T + self.pos
@@ -144,7 +157,7 @@ def compare(hb: mujoco.MjModel, ours: mujoco.MjModel, seed: int = 0) -> list[dic
     rng = np.random.default_rng(seed)
     qpos = hb.qpos0[: ours.nq].copy()
     d_hb, d_us = _posed(hb, qpos), _posed(ours, qpos)
-    col_hb, col_us = _colliders(hb), _colliders(ours)
+    col_hb, col_us = _colliders(hb), _ours(ours)
     every = [_Geom(ours, d_us, g, rng, n=200) for ids in col_us.values() for g in ids]
     rows = []
     for body in sorted(set(col_hb) | set(col_us)):
@@ -177,16 +190,19 @@ def main(argv=None) -> None:
     p.add_argument("--hb-robot", type=Path, required=True, help="HumanoidBench's h1hand_pos.xml")
     p.add_argument("--tolerance", type=float, default=0.01, help="flag links off by more (m)")
     p.add_argument("--out", type=Path, default=None)
-    p.add_argument("--refit", action="store_true", help="print refitted single-capsule links")
+    p.add_argument(
+        "--variant", choices=("h1hand", "h1"), default="h1hand", help="our robot to compare"
+    )
+    p.add_argument("--refit", action="store_true", help="print refitted capsules, one per line")
     args = p.parse_args(argv)
     if not args.hb_robot.is_file():
         raise SystemExit(f"error: --hb-robot {str(args.hb_robot)!r} is not a file")
     hb = mujoco.MjModel.from_xml_path(str(args.hb_robot))
     if args.refit:
-        for row in refit(hb, h1.load_model("h1hand", "manipulation")):
+        for row in refit(hb, h1.load_model(args.variant)):
             print(json.dumps(row))
         return
-    rows = compare(hb, h1.load_model("h1hand", "manipulation"))
+    rows = compare(hb, h1.load_model(args.variant))
     print("| link | HumanoidBench | sirl_jax | HB outside ours (cm) | ours outside HB (cm) "
           "| HB outside all of ours (cm) | |")  # fmt: skip
     print("|---|---|---|---:|---:|---:|---|")
@@ -201,22 +217,24 @@ def main(argv=None) -> None:
         args.out.write_text(json.dumps(rows, indent=1) + "\n")
 
 
-
 def _hull_points(geoms: list[_Geom]) -> tuple[np.ndarray, list[np.ndarray]]:
-    """(world vertices of HumanoidBench's hulls [V, 3], world plane equations per hull)."""
+    """(world surface points of HumanoidBench's colliders [V, 3], world plane equations of
+    each collider's convex hull)."""
     verts, planes = [], []
     for g in geoms:
-        if g.type != G.mjGEOM_MESH:
-            raise ValueError("refit needs a mesh collider")
         verts.append(g.surface())
+        if g.planes is None:
+            g.planes = ConvexHull(g.local_surface).equations
         n = g.planes[:, :3] @ g.mat.T
         planes.append(np.concatenate([n, (g.planes[:, 3] - n @ g.pos)[:, None]], 1))
     return np.concatenate(verts), planes
 
 
-def fit_capsule(verts: np.ndarray, planes: list[np.ndarray], seed: int = 0):
-    """(a [3], b [3], r) of the capsule minimising max(HB outside it, it outside HB), world
-    frame; Nelder-Mead from the principal axis of the hull vertices."""
+def fit_capsule(verts: np.ndarray, planes: list[np.ndarray], covered=None, seed: int = 0):
+    """(a [3], b [3], r, cost before, cost after) of the capsule minimising max(HB outside
+    our colliders, it outside HB), world frame. `covered(points) -> [N]` is how far points lie
+    outside the link's other colliders of ours (None: there are none), so the capsule only has
+    to take what they leave. Nelder-Mead from the principal axis of the uncovered points."""
     from scipy.optimize import minimize
 
     rng = np.random.default_rng(seed)
@@ -224,10 +242,12 @@ def fit_capsule(verts: np.ndarray, planes: list[np.ndarray], seed: int = 0):
     unit /= np.linalg.norm(unit, axis=1, keepdims=True)
     t = rng.uniform(0, 1, 600)
     sub = verts[rng.choice(len(verts), min(len(verts), 3000), replace=False)]
-    centre = sub.mean(0)
-    axis = np.linalg.svd(sub - centre)[2][0]
-    proj = (sub - centre) @ axis
-    radial = np.linalg.norm(sub - centre - np.outer(proj, axis), axis=1)
+    others = covered(sub) if covered is not None else np.full(len(sub), np.inf)
+    left = sub[others > 0.005] if (others > 0.005).sum() >= 10 else sub
+    centre = left.mean(0)
+    axis = np.linalg.svd(left - centre)[2][0]
+    proj = (left - centre) @ axis
+    radial = np.linalg.norm(left - centre - np.outer(proj, axis), axis=1)
     r0 = np.percentile(radial, 75)
     x0 = np.r_[centre + axis * (proj.min() + r0), centre + axis * (proj.max() - r0), r0]
 
@@ -235,38 +255,46 @@ def fit_capsule(verts: np.ndarray, planes: list[np.ndarray], seed: int = 0):
         a, b, r = x[:3], x[3:6], abs(x[6])
         ab = b - a
         s = np.clip((sub - a) @ ab / max(ab @ ab, 1e-12), 0, 1)
-        hb_out = np.maximum(np.linalg.norm(sub - a - s[:, None] * ab, axis=1) - r, 0).max()
+        mine = np.maximum(np.linalg.norm(sub - a - s[:, None] * ab, axis=1) - r, 0)
+        hb_out = np.minimum(mine, others).max()
         surf = a + t[:, None] * ab + r * unit
         out = np.min([np.maximum((surf @ p[:, :3].T + p[:, 3]).max(1), 0) for p in planes], 0)
         return max(hb_out, out.max())
 
     res = minimize(cost, x0, method="Nelder-Mead",
-                   options={"maxiter": 4000, "xatol": 1e-4, "fatol": 1e-5})  # fmt: skip
+                   options={"maxiter": 6000, "xatol": 1e-4, "fatol": 1e-5})  # fmt: skip
     return res.x[:3], res.x[3:6], abs(res.x[6]), cost(x0), res.fun
 
 
 def refit(hb: mujoco.MjModel, ours: mujoco.MjModel, seed: int = 0) -> list[dict]:
-    """Per body whose HumanoidBench collider is meshes and ours one capsule: the refitted
-    capsule in our body frame (fromto, radius) and its fit cost before and after (m)."""
+    """Every capsule of ours on a link HumanoidBench gives a collider: the refitted capsule in
+    our body frame (fromto, radius) and its fit cost before and after (m). A capsule that
+    shares its link with other colliders of ours (the ankle housing beside the sole box, the
+    shoulder housings beside the torso box) is fitted to what those leave uncovered."""
     rng = np.random.default_rng(seed)
     qpos = hb.qpos0[: ours.nq].copy()
     d_hb, d_us = _posed(hb, qpos), _posed(ours, qpos)
-    col_hb, col_us = _colliders(hb), _colliders(ours)
+    col_hb, col_us = _colliders(hb), _ours(ours)
     out = []
     for body, ids in sorted(col_us.items()):
-        if len(ids) != 1 or ours.geom_type[ids[0]] != G.mjGEOM_CAPSULE or body not in col_hb:
+        if body not in col_hb or body.startswith(("lh_", "rh_")):
             continue
         hb_geoms = [_Geom(hb, d_hb, g, rng) for g in col_hb[body]]
-        if any(g.type != G.mjGEOM_MESH for g in hb_geoms):
-            continue
         verts, planes = _hull_points(hb_geoms)
-        a, b, r, before, after = fit_capsule(verts, planes, seed)
-        b_id = ours.body(body).id
-        pos, mat = d_us.xpos[b_id], d_us.xmat[b_id].reshape(3, 3)
-        local = [(p - pos) @ mat for p in (a, b)]
-        out.append({"body": body, "geom": ours.geom(ids[0]).name, "radius": round(float(r), 4),
-                    "fromto": [round(float(v), 4) for v in np.concatenate(local)],
-                    "cost_pca": float(before), "cost_fit": float(after)})  # fmt: skip
+        for g in ids:
+            if ours.geom_type[g] != G.mjGEOM_CAPSULE:
+                continue
+            rest = [_Geom(ours, d_us, k, rng) for k in ids if k != g]
+            covered = (
+                (lambda x, rest=rest: np.min([r.outside(x) for r in rest], 0)) if rest else None
+            )
+            a, b, r, before, after = fit_capsule(verts, planes, covered, seed)
+            b_id = ours.body(body).id
+            pos, mat = d_us.xpos[b_id], d_us.xmat[b_id].reshape(3, 3)
+            local = [(p - pos) @ mat for p in (a, b)]
+            out.append({"body": body, "geom": ours.geom(g).name, "radius": round(float(r), 4),
+                        "fromto": [round(float(v), 4) for v in np.concatenate(local)],
+                        "cost_start": float(before), "cost_fit": float(after)})  # fmt: skip
     return out
 
 

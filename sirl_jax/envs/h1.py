@@ -112,9 +112,18 @@ GEOM_GROUPS: dict[str, tuple[str, ...]] = {
     "body": ("pelvis", "torso", "head"),
     "arms": ("left_upper_arm", "left_forearm", "right_upper_arm", "right_forearm"),
     "hands": _hand_geoms(),
+    "links": (
+        "left_hip_yaw", "left_hip_roll", "left_ankle", "right_hip_yaw", "right_hip_roll",
+        "right_ankle", "shoulders", "left_shoulder_pitch", "left_shoulder_roll",
+        "right_shoulder_pitch", "right_shoulder_roll",
+    ),  # fmt: skip
 }
 """Robot collider names by group (h1hand). The h1 variant has no "hands"; its arms end in
-"left_fist"/"right_fist" spheres, listed under "arms" by `Robot.geom_groups`."""
+"left_fist"/"right_fist" spheres, listed under "arms" by `Robot.geom_groups`. "links" are
+the capsules of the hip yaw/roll and shoulder pitch/roll links, the ankle housings and the
+shoulder housings of the torso (docs/robot.md, collider fit): no contact profile turns them on
+(each would add floor contacts to every task); obstacle tasks collide them with their
+obstacles, and every contact rule that tests robot geoms (`overlap.PairQuery`) includes them."""
 _H1_FISTS = ("left_fist", "right_fist")
 
 # groups that collide with the world in each contact profile

@@ -46,7 +46,10 @@ RESET_NOISE = 0.01
 # contype=1 conaffinity=2 (robot-floor only; no self-collision). A task that wants a scene geom to
 # touch only some robot parts adds one of these bits to the conaffinity of those parts and gives
 # the scene geom that bit as contype (and conaffinity 0, so scene geoms never touch each other).
-GROUP_BITS = {"feet": 1 << 2, "legs": 1 << 3, "body": 1 << 4, "arms": 1 << 5, "hands": 1 << 6}
+GROUP_BITS = {
+    "feet": 1 << 2, "legs": 1 << 3, "body": 1 << 4, "arms": 1 << 5, "hands": 1 << 6,
+    "links": 1 << 9,
+}  # fmt: skip
 ALL_GROUPS = ("feet", "legs", "body", "arms")
 """The robot groups that collide in the "locomotion" contact profile."""
 BIT_OBJECT = 1 << 7

@@ -33,9 +33,9 @@ from sirl_jax.envs.tasks.common import fallen, robot_groups
 
 WALL_DISCOUNT = 0.1
 """Reward factor while touching a barrier / maze block / pole."""
-OBSTACLE_GROUPS = ("feet", "legs", "body", "arms", "hands")
+OBSTACLE_GROUPS = ("feet", "legs", "body", "arms", "hands", "links")
 """The robot groups that collide with the obstacles (all of them; the hands through their
-wrist and palm boxes, `obstacle_colliders`)."""
+wrist and palm boxes, `obstacle_colliders`; "links" touch nothing else)."""
 CONTACT_RULES = ("query", "contacts")
 
 
