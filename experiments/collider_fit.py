@@ -78,12 +78,17 @@ def _primitive_surface(gtype: int, size: np.ndarray, n: int, rng) -> np.ndarray:
     if gtype == G.mjGEOM_SPHERE:
         v = rng.normal(size=(n, 3))
         return size[0] * v / np.linalg.norm(v, axis=1, keepdims=True)
-    if gtype == G.mjGEOM_CAPSULE:
+    if gtype == G.mjGEOM_CAPSULE:  # side and caps, area-weighted
+        r, h = size[0], size[1]
+        side = rng.uniform(size=n) < (2 * h) / (2 * h + 2 * r)
         v = rng.normal(size=(n, 3))
-        v = size[0] * v / np.linalg.norm(v, axis=1, keepdims=True)
-        v[:, 2] += rng.uniform(-size[1], size[1], n)
-        keep = _local_sdf(gtype, size, v) > -1e-9  # points on the outer surface only
-        return v[keep]
+        v = r * v / np.linalg.norm(v, axis=1, keepdims=True)
+        ang = rng.uniform(0, 2 * np.pi, n)
+        v[side] = np.stack(
+            [r * np.cos(ang[side]), r * np.sin(ang[side]), rng.uniform(-h, h, side.sum())], 1
+        )
+        v[~side, 2] += np.sign(v[~side, 2]) * h
+        return v
     if gtype in (G.mjGEOM_BOX, G.mjGEOM_CYLINDER):
         half = size if gtype == G.mjGEOM_BOX else np.array([size[0], size[0], size[1]])
         p = rng.uniform(-1, 1, (n, 3)) * half
