@@ -158,7 +158,8 @@ def test_h1hand_contract_obs_layout_reward_and_termination_match_the_env(tmp_pat
     model = S.load_model(tmp_path, contract)
     data = mujoco.MjData(model)
     rng = np.random.default_rng(1)
-    qpos, qvel = S.sample_initial(contract, model, rng)
+    qpos, qvel, values = S.sample_initial(contract, model, rng)
+    assert values == {} and "then" not in contract["reset"]
     data.qpos[:], data.qvel[:] = qpos, qvel + rng.normal(0, 0.3, model.nv)
     mujoco.mj_forward(model, data)
     want = env._observe(mjx.put_data(model, data), ())
@@ -183,6 +184,117 @@ def test_h1hand_contract_obs_layout_reward_and_termination_match_the_env(tmp_pat
                               r.com_velocity(d), speed)  # fmt: skip
         moving = {**contract, "reward": {**contract["reward"], "speed": speed}}
         assert abs(S.reward(moving, model, data, action) - float(want)) < 1e-5
+
+
+@pytest.mark.timeout(300)
+def test_reach_and_sit_hard_resets_and_reach_obs_follow_the_contract(tmp_path):
+    """The task-randomised resets are contract ops: reach's goal (a drawn value the observation
+    reads) and sit_hard's root pose; the obs layout equals the env's on a constructed state."""
+    from mujoco import mjx
+
+    spec, env = load("h1hand-reach-v0")
+    C.write_model(env, tmp_path / C.MODEL_FILE)
+    contract = C.build_contract(env, spec, None, 0, tmp_path / C.MODEL_FILE)
+    assert contract["training"] is None and contract["termination"]["kind"] == "never"
+    assert contract["reset"]["then"] == [{"op": "value_uniform", "name": "goal",
+                                          "low": [-2.0, -2.0, 0.2], "high": [2.0, 2.0, 2.0]}]
+    assert [f["source"] for f in contract["observation"]["fields"][-2:]] == ["site_xpos",
+                                                                             "reset_value"]
+    model = S.load_model(tmp_path, contract)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(3)
+    goals = []
+    for _ in range(20):
+        qpos, qvel, values = S.sample_initial(contract, model, rng)
+        goals.append(values["goal"])
+    goals = np.stack(goals)
+    assert (goals >= [-2, -2, 0.2]).all() and (goals <= [2, 2, 2]).all() and np.ptp(goals) > 1
+    data.qpos[:], data.qvel[:] = qpos, qvel + rng.normal(0, 0.3, model.nv)
+    mujoco.mj_forward(model, data)
+    goal = env.task.reset_state(values, jnp.asarray(qpos))
+    want = env._observe(mjx.put_data(model, data), goal)
+    got = S.observe(contract, data, values)
+    np.testing.assert_allclose(got, np.asarray(want), atol=1e-6)
+    np.testing.assert_allclose(got[-3:], values["goal"], atol=1e-6)
+    with pytest.raises(S.ContractError, match="reset value 'goal'"):
+        S.observe(contract, data, {})
+
+    spec, env = load("h1hand-sit_hard-v0")
+    C.write_model(env, tmp_path / C.MODEL_FILE)
+    contract = C.build_contract(env, spec, None, 0, tmp_path / C.MODEL_FILE)
+    (op,) = contract["reset"]["then"]
+    assert (op["op"], op["x"], op["y"], op["yaw"]) == ("root_pose_uniform", [0.2, 0.4],
+                                                       [-0.15, 0.15], [-1.8, 1.8])
+    model = S.load_model(tmp_path, contract)
+    poses = np.stack([S.sample_initial(contract, model, rng)[0] for _ in range(50)])
+    yaw = 2 * np.arctan2(poses[:, 6], poses[:, 3])
+    assert (poses[:, 0] >= 0.2).all() and (poses[:, 0] <= 0.4).all()
+    assert (np.abs(poses[:, 1]) <= 0.15).all() and (np.abs(yaw) <= 1.8).all()
+    assert np.ptp(yaw) > 2.0 and np.allclose(poses[:, 4:6], 0.0)
+    # the task's own randomisation lands in the same box (one distribution, two samplers)
+    q0 = jnp.asarray(model.key_qpos[0], jnp.float32)
+    env_q = np.asarray(jax.vmap(lambda k: env.task.init(k, q0)[0])(
+        jax.random.split(jax.random.PRNGKey(0), 50)))  # fmt: skip
+    assert (env_q[:, 0] >= 0.2).all() and (env_q[:, 0] <= 0.4).all() and np.ptp(env_q[:, 0]) > 0.1
+
+
+@pytest.mark.timeout(300)
+def test_balance_contact_termination_in_the_contract_equals_the_task(tmp_path):
+    """balance_hard's termination as contract rules (root z, robot-sphere overlap, robot or
+    board below the floor), read by MuJoCo C's mj_geomDistance, against the task's own rule
+    on constructed states."""
+    from mujoco import mjx
+
+    spec, env = load("h1hand-balance_hard-v0")
+    C.write_model(env, tmp_path / C.MODEL_FILE)
+    contract = C.build_contract(env, spec, None, 0, tmp_path / C.MODEL_FILE)
+    rule = contract["termination"]
+    assert rule["kind"] == "any" and [r["kind"] for r in rule["rules"]] == [
+        "qpos_below", "geoms_overlap", "geoms_overlap"]  # fmt: skip
+    assert "lh_mfdistal" in rule["rules"][1]["a"] and len(rule["rules"][1]["a"]) > 80
+    model = S.load_model(tmp_path, contract)
+    data = mujoco.MjData(model)
+    evaluate = jax.jit(lambda d: env.task.evaluate(env.robot, d, ())[1])
+    hand = model.geom("lh_mfdistal")
+    sphere = model.joint("free_rolling_pivot").qposadr[0]
+    board = model.joint("free_stand_board").qposadr[0]
+
+    def both(edit) -> tuple[bool, bool]:
+        data.qpos[:] = model.key_qpos[0]
+        mujoco.mj_kinematics(model, data)
+        edit()
+        mujoco.mj_forward(model, data)
+        return S.terminated(contract, model, data), bool(evaluate(mjx.put_data(model, data)))
+
+    def into_hand():  # the sphere's surface 1 cm inside the fingertip's centre
+        mujoco.mj_kinematics(model, data)
+        centre = data.geom_xpos[hand.id] + np.array([0.0, 0.0, 0.17 - 0.01])
+        data.qpos[sphere:sphere + 3] = centre
+
+    def board_down():
+        data.qpos[board + 2] = 0.01  # half-height 0.03: 2 cm below the floor
+
+    def root_low():
+        data.qpos[2] = 0.7
+
+    assert both(lambda: None) == (False, False)
+    assert both(into_hand) == (True, True)
+    assert both(board_down) == (True, True)
+    assert both(root_low) == (True, True)
+
+
+@pytest.mark.timeout(300)
+def test_sim2sim_random_policy_cpu_return_scored_by_the_task_equals_the_contract_reward():
+    """sim2sim --task stand --policy random --no-mjx: the CPU return scored by the task's own
+    reward on the recorded CPU states equals the contract's numpy reward, step for step."""
+    from sirl_jax.run.sim2sim import sim2sim
+
+    result = sim2sim(None, 2, "random", 12, 0, mjx=False, task="stand")
+    assert result["cpu_return_source"] == "task" and result["task"] == "h1hand-stand-v0"
+    for ep in result["episodes"]:
+        assert ep["cpu_loop_length"] == ep["cpu_length"] and ep["termination_agrees"]
+        assert abs(ep["cpu_return"] - ep["cpu_contract_return"]) < 1e-4 * ep["cpu_length"]
+        assert ep["cpu_return"] > 0.1
 
 
 @pytest.mark.timeout(300)
@@ -263,6 +375,12 @@ def test_sim2sim_refusals_are_one_line(exported, tmp_path, capsys):
     assert "is not an export directory (no contract.json)" in _one_error_line(capsys)
     assert cli.main(["sim2sim", str(out), "--episodes", "0"]) == 2
     assert "--episodes=0 is invalid" in _one_error_line(capsys)
+    assert cli.main(["sim2sim"]) == 2
+    assert "needs an export directory or --task NAME" in _one_error_line(capsys)
+    assert cli.main(["sim2sim", "--task", "stand"]) == 2
+    assert "--policy must be random" in _one_error_line(capsys)
+    assert cli.main(["sim2sim", "--task", "nope", "--policy", "random"]) == 2
+    assert "unknown task 'nope'" in _one_error_line(capsys)
     tampered = tmp_path / "tampered"
     shutil.copytree(out, tampered)
     blob = bytearray((tampered / "model.mjb").read_bytes())

@@ -74,6 +74,9 @@ class Task(abc.ABC):
     """Observation = full qpos and qvel (objects included) + extras; False: the robot's only."""
     qvel_obs: bool = True
     """False: the state part of the observation is positions only (kitchen)."""
+    reads_contact_slots: bool = False
+    """`evaluate` reads MJX's contact slots (not only positions, velocities, sensors and forces),
+    so a state from another simulator cannot be scored by it (sim2sim)."""
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         """Adds the task scene to `spec` (default: none)."""
@@ -104,6 +107,35 @@ class Task(abc.ABC):
         """[extra_obs_size] observation entries after qpos and qvel (default: none)."""
         del robot, data, task_state
         return jnp.zeros((0,), jnp.float32)
+
+    # -- What an exported policy's contract says of the task (sirl_jax/run/contract.py) -------
+    # Each hook describes the method above it in the vocabulary `contract_sim` reads (docs/cli.md,
+    # "Export and sim-to-sim"); None means "not describable", and the contract says so.
+
+    def reset_ops(self) -> list[dict] | None:
+        """What `init` and `after_reset` do to the noisy keyframe, as contract reset ops.
+
+        Default: [] for a task that overrides neither, None (not described) otherwise."""
+        plain = type(self).init is Task.init and type(self).after_reset is Task.after_reset
+        return [] if plain else None
+
+    def reset_state(self, values: dict[str, Any], qpos: jax.Array) -> Any:
+        """The task state of an episode whose reset ops drew `values` ({name: array}).
+
+        Default: `init`'s state, right for any task whose state does not depend on its key."""
+        del values
+        return self.init(jax.random.PRNGKey(0), qpos)[1]
+
+    def extra_obs_fields(self) -> list[dict] | None:
+        """`extra_obs` as contract observation fields (name, source, size, ...).
+
+        Default: [] for a task without extras, None (not described) otherwise."""
+        return [] if self.extra_obs_size == 0 else None
+
+    def termination_rule(self) -> dict | None:
+        """The contract's termination rule, where it is more than the task table's state test
+        (balance's contacts); None: the table's rule (`contract._termination`)."""
+        return None
 
 
 def set_contact_bits(

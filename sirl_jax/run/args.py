@@ -79,12 +79,15 @@ class ExportArgs:
 class Sim2simArgs:
     """Drive CPU MuJoCo with an export through its contract alone, and compare with MJX."""
 
-    export: tyro.conf.Positional[str]
-    """The export directory (from `export`)."""
+    export: tyro.conf.Positional[str | None] = None
+    """The export directory (from `export`); or none, with --task and --policy random."""
+    task: str | None = None
+    """Without an export: the task whose scene and contract to build (random policy only)."""
     episodes: int = 5
     """Episodes, each from the same initial state on both sides."""
     policy: str = "prior"
-    """prior (policy.onnx on onnxruntime) | planner (planner.jax, eval mode)."""
+    """prior (policy.onnx on onnxruntime) | planner (planner.jax, eval mode) | random (uniform
+    actions from the seed, the same sequence on both sides)."""
     max_steps: int | None = None
     """Stop each episode after this many control steps (default: the task's T)."""
     seed: int = 0

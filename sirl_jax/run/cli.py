@@ -257,8 +257,9 @@ USAGE = """usage: python -m sirl_jax {train,tasks,eval,render,plot,export,sim2si
   plot   python -m sirl_jax plot RUN_DIR... [--out FILE.png]: curves, R_max, scores
   export python -m sirl_jax export RUN_DIR [--step N] [--out DIR]: ONNX policy, planner,
          params, scene model and observation/action contract
-  sim2sim python -m sirl_jax sim2sim EXPORT_DIR [--episodes 5] [--policy prior|planner]:
-         the export in CPU MuJoCo through its contract, against MJX
+  sim2sim python -m sirl_jax sim2sim EXPORT_DIR [--episodes 5] [--policy prior|planner|random]:
+         the export in CPU MuJoCo through its contract, against MJX; or
+         sim2sim --task NAME --policy random: any task with a contract, no export needed
 """
 
 

@@ -117,23 +117,24 @@ def _termination(task_id: str) -> dict:
 
 
 def _humanoid_parts(env, task_id: str) -> dict:
-    from sirl_jax.envs.humanoid import FRAME_SKIP, RESET_NOISE, Task
+    from sirl_jax.envs.humanoid import FRAME_SKIP
     from sirl_jax.envs.rewards import STAND_HEIGHT
     from sirl_jax.envs.tasks.basic import WalkTask
 
     task = env.task
-    fields = []
-    if task.extra_obs_size:
-        fields.append({"name": f"task/{task.name}", "source": "task",
-                       "size": int(task.extra_obs_size),
-                       "why": f"{type(task).__name__}.extra_obs: task state, not in "
-                              "qpos/qvel"})  # fmt: skip
-    randomised = type(task).init is not Task.init
-    reset = {"kind": "keyframe_noise", "keyframe": "stand", "qpos_noise": RESET_NOISE,
+    fields = task.extra_obs_fields()
+    if fields is None:
+        fields = [{"name": f"task/{task.name}", "source": "task",
+                   "size": int(task.extra_obs_size),
+                   "why": f"{type(task).__name__}.extra_obs: task code"}]  # fmt: skip
+    reset = {"kind": "keyframe_noise", "keyframe": "stand", "qpos_noise": task.reset_noise,
              "qvel": 0.0}  # fmt: skip
-    if randomised:
+    ops = task.reset_ops()
+    if ops is None:
         reset = {"kind": "not_described", "why": f"{type(task).__name__}.init randomises the "
                  "scene from task code", "base": reset}  # fmt: skip
+    elif ops:
+        reset["then"] = ops
     if isinstance(task, WalkTask):
         reward = {"kind": "h1_walk", "speed": task.speed, "stand_height": STAND_HEIGHT,
                   "formula": "small_control * standing * upright(0.9) * (dont_move if "
@@ -141,8 +142,9 @@ def _humanoid_parts(env, task_id: str) -> dict:
     else:
         reward = {"kind": "not_described",
                   "why": f"{type(task).__name__}'s reward reads contacts or task state"}
+    termination = task.termination_rule() or _termination(task_id)
     return {"fields": fields, "substeps": FRAME_SKIP, "reset": reset,
-            "termination": _termination(task_id), "reward": reward}  # fmt: skip
+            "termination": termination, "reward": reward}  # fmt: skip
 
 
 def env_parts(env, task_id: str) -> dict:
@@ -165,8 +167,9 @@ def env_parts(env, task_id: str) -> dict:
                      "export supports the pendulum and the HumanoidBench tasks")  # fmt: skip
 
 
-def build_contract(env, spec, config_dict: dict, env_steps: int, model_path: Path) -> dict:
-    """The contract of a policy trained on `env` (its scene saved at `model_path`)."""
+def build_contract(env, spec, config_dict: dict | None, env_steps: int, model_path: Path) -> dict:
+    """The contract of a policy trained on `env` (its scene saved at `model_path`);
+    `config_dict` None: no policy (sim2sim's random policy), `training` is null."""
     model = env.mj_model
     parts = env_parts(env, spec.id)
     fields = _with_starts(parts["fields"])
@@ -192,8 +195,9 @@ def build_contract(env, spec, config_dict: dict, env_steps: int, model_path: Pat
         "version": VERSION,
         "task": {"id": spec.id, "episode_length": int(env.episode_length),
                  "success_bar": env.success_bar},  # fmt: skip
-        "training": {"config_file": "config.json", "config_sha256": config_sha256(config_dict),
-                     "env_steps": int(env_steps)},  # fmt: skip
+        "training": None if config_dict is None else {
+            "config_file": "config.json", "config_sha256": config_sha256(config_dict),
+            "env_steps": int(env_steps)},  # fmt: skip
         "model": {"file": model_path.name, "format": "mjb", "sha256": sha256_file(model_path),
                   "mujoco_version": mujoco.__version__, "nq": int(model.nq),
                   "nv": int(model.nv), "nu": int(model.nu), **robot},  # fmt: skip

@@ -53,8 +53,9 @@ def load_model(export_dir: Path, contract: dict) -> mujoco.MjModel:
     return mujoco.MjModel.from_binary_path(str(path))
 
 
-def observe(contract: dict, data: mujoco.MjData) -> np.ndarray:
-    """[O] float32 observation of `data` by the contract's fields."""
+def observe(contract: dict, data: mujoco.MjData, values: dict | None = None) -> np.ndarray:
+    """[O] float32 observation of `data` by the contract's fields; `values`: what the reset
+    drew (`sample_initial`), for fields whose source is `reset_value`."""
     out = []
     for f in contract["observation"]["fields"]:
         adr, n, scale, src = f.get("adr", 0), f["size"], f.get("scale", 1.0), f["source"]
@@ -62,6 +63,13 @@ def observe(contract: dict, data: mujoco.MjData) -> np.ndarray:
             v = (data.qpos if src == "qpos" else data.qvel)[adr:adr + n]
         elif src in ("cos_qpos", "sin_qpos"):
             v = (np.cos if src == "cos_qpos" else np.sin)(data.qpos[adr:adr + n])
+        elif src == "site_xpos":
+            v = data.site(f["site"]).xpos
+        elif src == "reset_value":
+            if values is None or f["value"] not in values:
+                raise ContractError(f"observation field {f['name']} reads the reset value "
+                                    f"{f['value']!r}, which this episode's reset did not draw")
+            v = values[f["value"]]
         else:
             raise ContractError(f"observation field {f['name']} ({src}) needs task code, which "
                                 "the contract does not carry")  # fmt: skip
@@ -78,7 +86,9 @@ def to_ctrl(contract: dict, action: np.ndarray) -> np.ndarray:
 
 
 def sample_initial(contract: dict, model: mujoco.MjModel, rng: np.random.Generator):
-    """(qpos, qvel) of an episode start by the contract's reset rule."""
+    """(qpos, qvel, values) of an episode start by the contract's reset rule: the base
+    distribution, then its `then` ops in order. `values` holds what `value_uniform` ops drew
+    (e.g. reach's goal), which observation fields of source `reset_value` read."""
     reset = contract["reset"]
     if reset["kind"] == "uniform_qpos":
         qpos = model.qpos0.copy()
@@ -90,20 +100,77 @@ def sample_initial(contract: dict, model: mujoco.MjModel, rng: np.random.Generat
     else:
         raise ContractError(f"the contract does not describe this task's reset: "
                             f"{reset.get('why', reset['kind'])}")  # fmt: skip
-    return qpos, np.full(model.nv, float(reset["qvel"]))
+    values = {}
+    for op in reset.get("then", ()):
+        if op["op"] == "root_pose_uniform":  # free root: x, y and a yaw about +z
+            yaw = rng.uniform(*op["yaw"])
+            qpos[0], qpos[1] = rng.uniform(*op["x"]), rng.uniform(*op["y"])
+            qpos[3:7] = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+        elif op["op"] == "value_uniform":
+            values[op["name"]] = rng.uniform(op["low"], op["high"])
+        else:
+            raise ContractError(f"unknown reset op {op['op']!r} (this reader knows "
+                                "root_pose_uniform, value_uniform)")
+    return qpos, np.full(model.nv, float(reset["qvel"])), values
+
+
+def _geom_ids(model: mujoco.MjModel, names: list[str]) -> np.ndarray:
+    ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in names])
+    if (ids < 0).any():
+        missing = [n for n, i in zip(names, ids, strict=True) if i < 0]
+        raise ContractError(f"termination rule names geoms the model lacks: {missing}")
+    return ids
+
+
+def _overlap_test(model: mujoco.MjModel, a: np.ndarray, b: np.ndarray) -> Callable:
+    """data -> bool, some geom of `a` penetrates some geom of `b` (`mj_geomDistance` < 0).
+    Pairs farther apart than their bounding spheres are skipped (a plane's sphere is
+    unbounded)."""
+    fromto = np.zeros(6)
+
+    def test(data: mujoco.MjData) -> bool:
+        for gb in b:
+            rb = model.geom_rbound[gb]
+            near = a
+            if rb > 0:
+                gap = np.linalg.norm(data.geom_xpos[a] - data.geom_xpos[gb], axis=-1)
+                near = a[gap < model.geom_rbound[a] + rb]
+            for ga in near:
+                if mujoco.mj_geomDistance(model, data, int(ga), int(gb), 0.0, fromto) < 0.0:
+                    return True
+        return False
+
+    return test
+
+
+def _rule_fn(rule: dict, model: mujoco.MjModel) -> Callable[[mujoco.MjData], bool] | None:
+    kind = rule["kind"]
+    if kind == "never":
+        return lambda data: False
+    if kind == "qpos_below":
+        return lambda data: bool(data.qpos[rule["adr"]] < rule["value"])
+    if kind == "body_zz_below":
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, rule["body"])
+        return lambda data: bool(data.xmat[body, 8] < rule["value"])
+    if kind == "geoms_overlap":
+        return _overlap_test(model, _geom_ids(model, rule["a"]), _geom_ids(model, rule["b"]))
+    if kind == "any":
+        parts = [_rule_fn(r, model) for r in rule["rules"]]
+        if any(p is None for p in parts):
+            return None
+        return lambda data: any(p(data) for p in parts)
+    return None  # not_described
+
+
+def termination_fn(contract: dict, model: mujoco.MjModel) -> Callable[[mujoco.MjData], bool | None]:
+    """data -> the contract's termination rule on it (None: the rule is not described)."""
+    test = _rule_fn(contract["termination"], model)
+    return (lambda data: None) if test is None else test
 
 
 def terminated(contract: dict, model: mujoco.MjModel, data: mujoco.MjData) -> bool | None:
     """The contract's termination rule (None: not described)."""
-    rule = contract["termination"]
-    if rule["kind"] == "never":
-        return False
-    if rule["kind"] == "qpos_below":
-        return bool(data.qpos[rule["adr"]] < rule["value"])
-    if rule["kind"] == "body_zz_below":
-        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, rule["body"])
-        return bool(data.xmat[body, 8] < rule["value"])
-    return None
+    return termination_fn(contract, model)(data)
 
 
 def tolerance(x, bounds=(0.0, 0.0), margin=0.0, sigmoid="gaussian", value_at_margin=0.1):
@@ -172,9 +239,12 @@ def onnx_policy(export_dir: Path, contract: dict) -> Callable[[np.ndarray], np.n
 
 
 def rollout(export_dir: Path, contract: dict, act: Callable, initial: list, max_steps: int,
-            on_reset: Callable | None = None) -> list[dict]:  # fmt: skip
-    """One episode per (qpos, qvel) in `initial`, on CPU MuJoCo: `act(obs) -> action`, ctrl
-    held for `substeps` mj_step calls, until the contract's termination or `max_steps`.
+            on_reset: Callable | None = None,
+            on_step: Callable | None = None) -> list[dict]:  # fmt: skip
+    """One episode per (qpos, qvel, values) in `initial`, on CPU MuJoCo: `act(obs) -> action`,
+    ctrl held for `substeps` mj_step calls, until the contract's termination or `max_steps`
+    (a rule the contract does not describe never ends an episode). `on_step(data, action)`
+    sees the data after each control step (what a reward reads).
 
     Returns per episode: return (None if the reward is not described), length, terminated,
     obs [steps + 1, O] (the observations seen, the first one included).
@@ -182,24 +252,27 @@ def rollout(export_dir: Path, contract: dict, act: Callable, initial: list, max_
     model = load_model(export_dir, contract)
     data = mujoco.MjData(model)
     substeps, results = contract["timing"]["substeps"], []
-    for qpos, qvel in initial:
+    ends = termination_fn(contract, model)
+    for qpos, qvel, values in initial:
         mujoco.mj_resetData(model, data)
         data.qpos[:], data.qvel[:] = qpos, qvel
         mujoco.mj_forward(model, data)
         if on_reset is not None:
             on_reset()
-        obs = observe(contract, data)
+        obs = observe(contract, data, values)
         seen, ret, ended, steps = [obs], 0.0, False, 0
         for steps in range(1, max_steps + 1):  # noqa: B007
             action = np.asarray(act(obs))
             data.ctrl[: len(action)] = to_ctrl(contract, action)
             for _ in range(substeps):
                 mujoco.mj_step(model, data)
+            if on_step is not None:
+                on_step(data, action)
             r = reward(contract, model, data, action)
             ret = None if r is None or ret is None else ret + r
-            obs = observe(contract, data)
+            obs = observe(contract, data, values)
             seen.append(obs)
-            ended = bool(terminated(contract, model, data))
+            ended = bool(ends(data))
             if ended or not np.all(np.isfinite(obs)):
                 break
         results.append({"return": ret, "length": steps, "terminated": ended,

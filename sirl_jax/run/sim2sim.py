@@ -1,16 +1,26 @@
 """The `sim2sim` command: an export driving CPU MuJoCo through its contract, against MJX.
 
-`python -m sirl_jax sim2sim EXPORT_DIR [--episodes 5] [--policy prior|planner]` runs the
-exported policy (policy.onnx on onnxruntime) or the exported planner (planner.jax) in CPU
-MuJoCo by `contract_sim` (no sirl_jax env code), then the same policy in MJX (the task's
-sirl_jax env, the prior from params.npz in JAX, or the same planner.jax) from the same
-initial states and with the same planner keys, and reports both returns and lengths, their
-gap, and how soon the observations part.
+`python -m sirl_jax sim2sim EXPORT_DIR [--episodes 5] [--policy prior|planner|random]` runs
+the exported policy (policy.onnx on onnxruntime), the exported planner (planner.jax) or a
+seeded uniform-random action sequence in CPU MuJoCo by `contract_sim` (no sirl_jax env code),
+then the same policy in MJX (the task's sirl_jax env, the prior from params.npz in JAX, the
+same planner.jax, the same actions) from the same initial states and with the same planner
+keys, and reports both returns and lengths, their gap, and how soon the observations part.
+`sim2sim --task NAME --policy random` needs no export: it writes the task's scene and
+contract to a temporary directory first.
+
+The CPU side's return is the task's own reward (`Task.evaluate`, the code that scores MJX)
+evaluated on the MjData after each CPU control step, recorded by the rollout and scored
+after it: the driving loop stays contract-only, and the two returns are the same function
+of two simulators' states. Where the contract also describes the reward (the pendulum,
+stand/walk/run), its numpy value is reported beside it (`cpu_contract_return`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import tempfile
 from pathlib import Path
 
 import jax
@@ -20,7 +30,7 @@ import numpy as np
 from sirl_jax.run import contract_sim as S
 from sirl_jax.run.errors import UsageError
 
-POLICIES = ("prior", "planner")
+POLICIES = ("prior", "planner", "random")
 DIVERGED = 0.1
 """Max |obs difference| above which the two rollouts count as parted (`parted_at`)."""
 
@@ -39,57 +49,135 @@ def step_key(seed: int, episode: int, step) -> jax.Array:
     return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), episode), step)
 
 
+def random_actions(seed: int, episode: int, steps: int, size: int) -> np.ndarray:
+    """[steps, size] float32 uniform actions in [-1, 1] of one episode (both sides)."""
+    rng = np.random.default_rng([seed, episode])
+    return rng.uniform(-1.0, 1.0, (steps, size)).astype(np.float32)
+
+
 def cpu_episodes(export_dir: Path, contract: dict, policy: str, initial: list, max_steps: int,
-                 seed: int) -> list[dict]:  # fmt: skip
-    """The CPU MuJoCo side: `contract_sim.rollout` with the ONNX prior or planner.jax."""
+                 seed: int, recorder: Recorder | None = None) -> list[dict]:  # fmt: skip
+    """The CPU MuJoCo side: `contract_sim.rollout` with the ONNX prior, planner.jax or the
+    seeded random actions; `recorder` keeps each step's data for `score_cpu`."""
+    A = contract["action"]["size"]
+    box = {"state": None, "episode": -1, "t": 0, "actions": None}
     if policy == "prior":
-        return S.rollout(export_dir, contract, S.onnx_policy(export_dir, contract), initial,
-                         max_steps)  # fmt: skip
-    plan, zero = load_planner(export_dir, contract)
-    box = {"state": zero, "episode": -1, "t": 0}
+        prior = S.onnx_policy(export_dir, contract)
+    elif policy == "planner":
+        plan, zero = load_planner(export_dir, contract)
 
     def on_reset():
-        box.update(state=zero, episode=box["episode"] + 1, t=0)
+        box.update(episode=box["episode"] + 1, t=0)
+        if recorder is not None:
+            recorder.episodes.append([])
+        if policy == "planner":
+            box["state"] = zero
+        elif policy == "random":
+            box["actions"] = random_actions(seed, box["episode"], max_steps, A)
 
     def act(obs):
-        key = step_key(seed, box["episode"], box["t"])
-        action, box["state"] = plan(jnp.asarray(obs), box["state"], key)
+        t = box["t"]
         box["t"] += 1
+        if policy == "prior":
+            return prior(obs)
+        if policy == "random":
+            return box["actions"][t]
+        action, box["state"] = plan(jnp.asarray(obs), box["state"],
+                                    step_key(seed, box["episode"], t))  # fmt: skip
         return np.asarray(action)
 
-    return S.rollout(export_dir, contract, act, initial, max_steps, on_reset)
+    return S.rollout(export_dir, contract, act, initial, max_steps, on_reset, recorder)
+
+
+class Recorder:
+    """`rollout`'s `on_step`: copies the MjData fields an `mjx.Data` shares with it (every
+    top-level field: positions, velocities, kinematics, sensors, actuator forces; not MJX's
+    contact slots) after each control step, one list per episode, for `score_cpu`."""
+
+    def __init__(self, model):
+        import mujoco
+        from mujoco import mjx
+
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        self.template = mjx.put_data(model, data)
+        self.fields = [f.name for f in dataclasses.fields(mjx.Data) if f.name != "_impl"
+                       and np.shape(getattr(data, f.name, None)) ==
+                       np.shape(getattr(self.template, f.name))]  # fmt: skip
+        self.episodes: list[list[dict]] = []
+
+    def __call__(self, data, action) -> None:
+        del action
+        self.episodes[-1].append({k: np.array(getattr(data, k)) for k in self.fields})
+
+
+def score_cpu(env, recorder: Recorder, initial: list, max_steps: int) -> list[dict]:
+    """The task's reward and termination on each recorded CPU step (HumanoidEnv tasks):
+    per episode the return up to the task's first termination, and that step."""
+    task, robot, template = env.task, env.robot, recorder.template
+
+    def episode(fields, task_state, length):
+        def step(s, x):
+            f, t = x
+            d = template.replace(**{k: jnp.asarray(v, getattr(template, k).dtype)
+                                    for k, v in f.items()})  # fmt: skip
+            reward, done, s, _ = task.evaluate(robot, d, s)
+            return s, (jnp.where(t < length, reward, 0.0), done & (t < length))
+
+        _, (reward, done) = jax.lax.scan(step, task_state, (fields, jnp.arange(max_steps)))
+        first = jnp.where(done.any(), jnp.argmax(done), length)
+        ret = jnp.sum(jnp.where(jnp.arange(max_steps) <= first, reward, 0.0))
+        return ret, first + jnp.where(done.any(), 1, 0), done.any()
+
+    score = jax.jit(episode)
+    out = []
+    for steps, (qpos, _, values) in zip(recorder.episodes, initial, strict=True):
+        pad = [steps[-1]] * (max_steps - len(steps))
+        fields = {k: np.stack([s[k] for s in steps + pad]) for k in recorder.fields}
+        state0 = task.reset_state(values, jnp.asarray(qpos, jnp.float32))
+        ret, length, done = jax.device_get(score(fields, state0, len(steps)))
+        out.append({"return": float(ret), "length": int(length), "terminated": bool(done)})
+    return out
 
 
 def mjx_episodes(export_dir: Path, contract: dict, policy: str, initial: list, max_steps: int,
-                 seed: int) -> list[dict]:  # fmt: skip
-    """The MJX side: the task's sirl_jax env from the same (qpos, qvel), one jitted scan per
-    episode (`lax.map`); return and length count up to the first termination."""
-    from sirl_jax.config import Config, config_from_dict
-    from sirl_jax.envs import load
-    from sirl_jax.run.export import nested_params, policy_fn
+                 seed: int, env) -> list[dict]:  # fmt: skip
+    """The MJX side: the task's sirl_jax env from the same (qpos, qvel, values), one jitted
+    scan per episode (`lax.map`); return and length count up to the first termination."""
+    from sirl_jax.envs.humanoid import HumanoidEnv
 
     export_dir = Path(export_dir)
-    config = config_from_dict(Config, json.loads((export_dir / "config.json").read_text()))
-    _, env = load(contract["task"]["id"])
+    plan, prior, zero = None, None, jnp.zeros((1, 1), jnp.float32)
+    A = env.action_size
     if policy == "prior":
+        from sirl_jax.config import Config, config_from_dict
+        from sirl_jax.run.export import nested_params, policy_fn
+
+        config = config_from_dict(Config, json.loads((export_dir / "config.json").read_text()))
         params = nested_params(dict(np.load(export_dir / "params.npz")))
-        prior = policy_fn(config.agent, env.action_size, params)
-        plan, zero = None, jnp.zeros((1, 1), jnp.float32)
-    else:
+        prior = policy_fn(config.agent, A, params)
+    elif policy == "planner":
         plan, zero = load_planner(export_dir, contract)
+    steps = max_steps if policy == "random" else 1  # a placeholder for the other policies
+    actions = np.stack([random_actions(seed, e, max_steps, A)[:steps]
+                        for e in range(len(initial))])  # fmt: skip
 
     def episode(xs):
-        qpos, qvel, obs0, e = xs
+        qpos, qvel, values, obs0, acts, e = xs
         state = env.reset(jax.random.PRNGKey(0))
         physics = state.physics.replace(qpos=qpos, qvel=qvel)
         state = state.replace(physics=physics, obs=obs0)
+        if isinstance(env, HumanoidEnv):
+            state = state.replace(task=env.task.reset_state(values, qpos))
 
         def step(carry, t):
             state, ps, done, ret, length = carry
-            if plan is None:
+            if prior is not None:
                 action = prior(state.obs)
-            else:
+            elif plan is not None:
                 action, ps = plan(state.obs, ps, step_key(seed, e, t))
+            else:
+                action = acts[t]
             state = env.step(state, action)
             alive = ~done
             ret = ret + jnp.where(alive, state.reward, 0.0)
@@ -101,22 +189,25 @@ def mjx_episodes(export_dir: Path, contract: dict, policy: str, initial: list, m
         (_, _, done, ret, length), obs = jax.lax.scan(step, init, jnp.arange(max_steps))
         return ret, length, done, jnp.concatenate([obs0[None], obs])
 
-    qpos = jnp.asarray(np.stack([q for q, _ in initial]), jnp.float32)
-    qvel = jnp.asarray(np.stack([v for _, v in initial]), jnp.float32)
-    obs0 = jnp.asarray(np.stack([_initial_obs(export_dir, contract, q, v) for q, v in initial]))
-    ret, length, done, obs = jax.device_get(jax.jit(lambda xs: jax.lax.map(episode, xs))(
-        (qpos, qvel, obs0, jnp.arange(len(initial)))))  # fmt: skip
+    qpos = jnp.asarray(np.stack([q for q, _, _ in initial]), jnp.float32)
+    qvel = jnp.asarray(np.stack([v for _, v, _ in initial]), jnp.float32)
+    values = {k: jnp.asarray(np.stack([x[k] for _, _, x in initial]), jnp.float32)
+              for k in initial[0][2]}  # fmt: skip
+    obs0 = jnp.asarray(np.stack([_initial_obs(export_dir, contract, *i) for i in initial]))
+    xs = (qpos, qvel, values, obs0, jnp.asarray(actions), jnp.arange(len(initial)))
+    ret, length, done, obs = jax.device_get(jax.jit(lambda xs: jax.lax.map(episode, xs))(xs))
     return [{"return": float(ret[i]), "length": int(length[i]), "terminated": bool(done[i]),
              "obs": obs[i, : int(length[i]) + 1]} for i in range(len(initial))]  # fmt: skip
 
 
-def _initial_obs(export_dir: Path, contract: dict, qpos, qvel) -> np.ndarray:
+def _initial_obs(export_dir: Path, contract: dict, qpos, qvel, values) -> np.ndarray:
     import mujoco
 
     model = S.load_model(export_dir, contract)
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = qpos, qvel
-    return S.observe(contract, data)
+    mujoco.mj_kinematics(model, data)  # site positions of task fields
+    return S.observe(contract, data, values)
 
 
 def parted_at(a: np.ndarray, b: np.ndarray) -> int | None:
@@ -126,33 +217,76 @@ def parted_at(a: np.ndarray, b: np.ndarray) -> int | None:
     return int(far[0]) if len(far) else None
 
 
-def sim2sim(export_dir: Path, episodes: int, policy: str, max_steps: int | None, seed: int,
-            mjx: bool = True) -> dict:  # fmt: skip
-    """Runs both sides; prints a table; returns the figures (per episode and means)."""
+def task_export(task: str, out: Path):
+    """Writes a policy-less export of `task` (model.mjb and contract.json, `training` null) to
+    `out`; returns the env."""
+    from sirl_jax.run import contract as C
+    from sirl_jax.run.runner import load_task
+
+    spec, env = load_task(task)
+    C.env_parts(env, spec.id)  # refuses an env without a contract
+    C.write_model(env, out / C.MODEL_FILE)
+    contract = C.build_contract(env, spec, None, 0, out / C.MODEL_FILE)
+    C.write_contract({**contract, "files": {}}, out / "contract.json")
+    return env
+
+
+def sim2sim(export_dir: Path | None, episodes: int, policy: str, max_steps: int | None,
+            seed: int, mjx: bool = True, task: str | None = None) -> dict:  # fmt: skip
+    """Runs both sides; prints a table; returns the figures (per episode and means).
+    `export_dir` None: `task`'s scene and contract in a temporary directory."""
+    if export_dir is None:
+        with tempfile.TemporaryDirectory() as tmp:
+            env = task_export(task, Path(tmp))
+            return _sim2sim(Path(tmp), episodes, policy, max_steps, seed, mjx, env)
+    return _sim2sim(export_dir, episodes, policy, max_steps, seed, mjx, None)
+
+
+def _sim2sim(export_dir: Path, episodes: int, policy: str, max_steps: int | None, seed: int,
+             mjx: bool, env) -> dict:  # fmt: skip
+    from sirl_jax.envs.humanoid import HumanoidEnv
+
     contract = S.read_contract(export_dir)
     model = S.load_model(export_dir, contract)
     rng = np.random.default_rng(seed)
     initial = [S.sample_initial(contract, model, rng) for _ in range(episodes)]
     T = contract["task"]["episode_length"] if max_steps is None else max_steps
-    cpu = cpu_episodes(export_dir, contract, policy, initial, T, seed)
-    ref = mjx_episodes(export_dir, contract, policy, initial, T, seed) if mjx else None
+    if env is None:
+        from sirl_jax.envs import load
+
+        env = load(contract["task"]["id"])[1]
+    scored = isinstance(env, HumanoidEnv) and not env.task.reads_contact_slots
+    recorder = Recorder(model) if scored else None
+    cpu = cpu_episodes(export_dir, contract, policy, initial, T, seed, recorder)
+    scores = score_cpu(env, recorder, initial, T) if scored else None
+    ref = mjx_episodes(export_dir, contract, policy, initial, T, seed, env) if mjx else None
+    described = contract["termination"]["kind"] != "not_described"
     rows = []
     for i, c in enumerate(cpu):
         row = {"episode": i, "cpu_return": c["return"], "cpu_length": c["length"],
                "cpu_terminated": c["terminated"]}  # fmt: skip
+        if scores is not None:  # the task's reward and termination on the CPU states
+            s = scores[i]
+            row.update(cpu_return=s["return"], cpu_length=s["length"],
+                       cpu_terminated=s["terminated"], cpu_contract_return=c["return"],
+                       cpu_loop_length=c["length"])  # fmt: skip
+            if described:  # did the contract's rule end the CPU loop where the task says?
+                row["termination_agrees"] = (c["length"], c["terminated"]) == (
+                    s["length"], s["terminated"])
         if ref is not None:
             m = ref[i]
-            has_return = c["return"] is not None
+            has_return = row["cpu_return"] is not None
             row.update(mjx_return=m["return"], mjx_length=m["length"],
                        mjx_terminated=m["terminated"],
-                       return_gap=c["return"] - m["return"] if has_return else None,
+                       return_gap=row["cpu_return"] - m["return"] if has_return else None,
                        first_step_obs_diff=float(np.max(np.abs(c["obs"][1] - m["obs"][1]))),
                        parted_at=parted_at(c["obs"], m["obs"]))  # fmt: skip
         rows.append(row)
-    summary = _summary(rows, contract, policy, T)
+    summary = _summary(rows, contract, scored)
     print(_table(rows, summary))
     return {"task": contract["task"]["id"], "policy": policy, "max_steps": T, "seed": seed,
-            "episodes": rows, **summary}  # fmt: skip
+            "cpu_return_source": "task" if scored else "contract", "episodes": rows,
+            **summary}  # fmt: skip
 
 
 def _mean(rows: list[dict], key: str) -> float | None:
@@ -160,13 +294,15 @@ def _mean(rows: list[dict], key: str) -> float | None:
     return float(np.mean(vals)) if vals and len(vals) == len(rows) else None
 
 
-def _summary(rows: list[dict], contract: dict, policy: str, T: int) -> dict:
+def _summary(rows: list[dict], contract: dict, scored: bool) -> dict:
     keys = ("cpu_return", "cpu_length", "mjx_return", "mjx_length", "return_gap",
             "first_step_obs_diff")  # fmt: skip
     out = {f"mean_{k}": _mean(rows, k) for k in keys}
     if out["mean_return_gap"] is not None:
         out["mean_abs_return_gap"] = float(np.mean([abs(r["return_gap"]) for r in rows]))
-    if contract["reward"]["kind"] == "not_described":
+    if any("termination_agrees" in r for r in rows):
+        out["termination_agreement"] = float(np.mean([r["termination_agrees"] for r in rows]))
+    if not scored and contract["reward"]["kind"] == "not_described":
         out["return_note"] = f"return not computed: {contract['reward']['why']}"
     return out
 
@@ -190,6 +326,9 @@ def _table(rows: list[dict], summary: dict) -> str:
                  f"{_fmt(summary['mean_mjx_return'])} (len "
                  f"{_fmt(summary['mean_mjx_length'], '.0f')}), mean |gap| "
                  f"{_fmt(summary.get('mean_abs_return_gap'))}")  # fmt: skip
+    if "termination_agreement" in summary:
+        lines.append(f"the contract's termination ended the CPU loop where the task's rule does "
+                     f"in {100 * summary['termination_agreement']:.0f}% of episodes")
     if "return_note" in summary:
         lines.append(summary["return_note"])
     return "\n".join(lines)
@@ -203,11 +342,17 @@ def main_sim2sim(args) -> int:
         raise UsageError(f"--max-steps={args.max_steps} is invalid; allowed: an int >= 1")
     if args.policy not in POLICIES:
         raise UsageError(f"--policy {args.policy!r} is invalid; allowed: {', '.join(POLICIES)}")
-    if not Path(args.export).is_dir():
+    if (args.export is None) == (args.task is None):
+        raise UsageError("sim2sim needs an export directory or --task NAME (not both)")
+    if args.task is not None and args.policy != "random":
+        raise UsageError(f"--task runs without an export, so --policy must be random "
+                         f"(got {args.policy!r}); export a run for prior or planner")
+    if args.export is not None and not Path(args.export).is_dir():
         raise UsageError(f"export directory {args.export} does not exist")
+    export = None if args.export is None else Path(args.export)
     try:
-        result = sim2sim(Path(args.export), args.episodes, args.policy, args.max_steps,
-                         args.seed, args.mjx)  # fmt: skip
+        result = sim2sim(export, args.episodes, args.policy, args.max_steps, args.seed,
+                         args.mjx, args.task)  # fmt: skip
     except S.ContractError as e:
         raise UsageError(str(e)) from e
     if args.json is not None:

@@ -68,6 +68,7 @@ class BalanceTask(Task):
         self.name = name
         self.free_pivot = name == "balance_hard"
         self.contact_rule = contact_rule
+        self.reads_contact_slots = contact_rule == "contacts"
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         groups = robot_groups(variant)
@@ -113,6 +114,7 @@ class BalanceTask(Task):
         self._floor = jnp.asarray(geom_mask(model, [floor]))
         self._not_floor_board = ~jnp.asarray(geom_mask(model, [floor, board]))
         robot_ids = np.concatenate(list(robot.geom_ids.values()))
+        self._robot_names = [model.geom(int(g)).name for g in robot_ids]
         self._model = model
         self._robot_sphere = PairQuery(model, robot_ids, [sphere])
         self._on_floor = np.concatenate([robot_ids, [board]])
@@ -123,6 +125,18 @@ class BalanceTask(Task):
         dist, geom = contact_arrays(data)
         sphere_bad = R.any_contact(dist, geom, self._sphere, self._not_floor_board)
         return sphere_bad | R.any_contact(dist, geom, self._floor, self._not_sphere)
+
+    def termination_rule(self) -> dict | None:
+        if self.contact_rule != "query":
+            return None  # MJX's contact slots: not a rule another simulator can follow
+        robot = self._robot_names
+        return {"kind": "any", "rule": "root z < 0.8, or a bad sphere/floor contact", "rules": [
+            {"kind": "qpos_below", "adr": 2, "value": 0.8},
+            {"kind": "geoms_overlap", "a": robot, "b": ["pivot_sphere_collision"],
+             "why": "a robot geom inside the sphere"},
+            {"kind": "geoms_overlap", "a": [*robot, "stand_board_collision"], "b": ["floor"],
+             "why": "a robot geom or the board below the floor plane"},
+        ]}  # fmt: skip
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         reward, terms = balance_reward(

@@ -190,3 +190,14 @@ class ReachTask(Task):
 
     def extra_obs(self, robot, data: mjx.Data, goal):
         return jnp.concatenate([robot.site_pos(data, "left_hand"), goal])
+
+    def reset_ops(self) -> list[dict]:
+        return [{"op": "value_uniform", "name": "goal", "low": list(self.goal_low),
+                 "high": list(self.goal_high)}]  # fmt: skip
+
+    def reset_state(self, values, qpos):
+        return jnp.asarray(values["goal"], jnp.float32)
+
+    def extra_obs_fields(self) -> list[dict]:
+        return [{"name": "task/left_hand", "source": "site_xpos", "site": "left_hand", "size": 3},
+                {"name": "task/goal", "source": "reset_value", "value": "goal", "size": 3}]

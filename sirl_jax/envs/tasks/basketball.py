@@ -116,6 +116,7 @@ class BasketballTask(Task):
     """
 
     name = "basketball"
+    reads_contact_slots = True  # the ball-hand touch
     metric_names = (
         "reward_hand_proximity", "reward_ball_success", "stand_reward", "small_control",
         "success_subtasks", "success",

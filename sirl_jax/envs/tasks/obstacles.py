@@ -190,6 +190,7 @@ class _ContactTask(Task):
         if contact_rule not in CONTACT_RULES:
             raise ValueError(f"contact_rule={contact_rule!r}; allowed: {CONTACT_RULES}")
         self.contact_rule = contact_rule
+        self.reads_contact_slots = contact_rule == "contacts"
 
     def bind(self, model, robot) -> None:
         ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in self._penalised_names]
@@ -293,6 +294,9 @@ class MazeTask(_ContactTask):
 
     def init(self, key, qpos):
         return qpos, jnp.zeros((), jnp.int32)
+
+    def reset_ops(self) -> list[dict]:
+        return []  # init only starts the stage at 0
 
     def evaluate(self, robot, data: mjx.Data, stage):
         reward, stage, terms = maze_reward(

@@ -71,6 +71,10 @@ def sit_reward(
     return reward, terms
 
 
+ROOT_X, ROOT_Y, ROOT_YAW = (0.2, 0.4), (-0.15, 0.15), (-1.8, 1.8)
+"""sit_hard's uniform reset ranges of the robot's root x, y (m) and yaw (rad)."""
+
+
 def yaw_quat(yaw: jax.Array) -> jax.Array:
     """[4] (w, x, y, z) rotation by `yaw` about +z (HumanoidBench's euler_to_quat(0, 0, yaw))."""
     return jnp.stack([jnp.cos(yaw / 2), 0.0 * yaw, 0.0 * yaw, jnp.sin(yaw / 2)])
@@ -116,11 +120,18 @@ class SitTask(Task):
         if not self.free:
             return qpos, ()
         kx, ky, kyaw = jax.random.split(key, 3)
-        x = jax.random.uniform(kx, (), minval=0.2, maxval=0.4)
-        y = jax.random.uniform(ky, (), minval=-0.15, maxval=0.15)
-        yaw = jax.random.uniform(kyaw, (), minval=-1.8, maxval=1.8)
+        (x0, x1), (y0, y1), (yaw0, yaw1) = ROOT_X, ROOT_Y, ROOT_YAW
+        x = jax.random.uniform(kx, (), minval=x0, maxval=x1)
+        y = jax.random.uniform(ky, (), minval=y0, maxval=y1)
+        yaw = jax.random.uniform(kyaw, (), minval=yaw0, maxval=yaw1)
         qpos = qpos.at[0].set(x).at[1].set(y).at[3:7].set(yaw_quat(yaw))
         return qpos, ()
+
+    def reset_ops(self) -> list[dict]:
+        if not self.free:
+            return []
+        return [{"op": "root_pose_uniform", "x": list(ROOT_X), "y": list(ROOT_Y),
+                 "yaw": list(ROOT_YAW)}]  # fmt: skip
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         reward, terms = sit_reward(
