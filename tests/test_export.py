@@ -237,6 +237,20 @@ def test_reach_and_sit_hard_resets_and_reach_obs_follow_the_contract(tmp_path):
         jax.random.split(jax.random.PRNGKey(0), 50)))  # fmt: skip
     assert (env_q[:, 0] >= 0.2).all() and (env_q[:, 0] <= 0.4).all() and np.ptp(env_q[:, 0]) > 0.1
 
+    # push places its goal from task code: refused, with the reason; cabinet's init draws
+    # nothing (its stage starts at 1), so its reset is the plain noisy keyframe
+    for name, described in (("h1hand-push-v0", False), ("h1hand-cabinet-v0", True)):
+        spec, env = load(name)
+        C.write_model(env, tmp_path / C.MODEL_FILE)
+        contract = C.build_contract(env, spec, None, 0, tmp_path / C.MODEL_FILE)
+        model = S.load_model(tmp_path, contract)
+        if described:
+            assert contract["reset"]["kind"] == "keyframe_noise"
+            assert len(S.sample_initial(contract, model, rng)[0]) == model.nq
+        else:
+            with pytest.raises(S.ContractError, match="PushTask's reset does what the contract"):
+                S.sample_initial(contract, model, rng)
+
 
 @pytest.mark.timeout(300)
 def test_balance_contact_termination_in_the_contract_equals_the_task(tmp_path):

@@ -131,8 +131,8 @@ def _humanoid_parts(env, task_id: str) -> dict:
              "qvel": 0.0}  # fmt: skip
     ops = task.reset_ops()
     if ops is None:
-        reset = {"kind": "not_described", "why": f"{type(task).__name__}.init randomises the "
-                 "scene from task code", "base": reset}  # fmt: skip
+        reset = {"kind": "not_described", "why": f"{type(task).__name__}'s reset does what "
+                 "the contract's reset ops cannot say (task code)", "base": reset}  # fmt: skip
     elif ops:
         reset["then"] = ops
     if isinstance(task, WalkTask):

@@ -205,6 +205,9 @@ class CabinetTask(Task):
     def init(self, key, qpos):
         return qpos, jnp.ones((), jnp.int32)
 
+    def reset_ops(self) -> list[dict]:
+        return []  # init only starts the task state; the key is unused
+
     def evaluate(self, robot, data: mjx.Data, stage):
         reward, stage, terms = cabinet_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),

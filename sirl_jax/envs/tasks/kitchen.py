@@ -436,6 +436,9 @@ class KitchenTask(Task):
     def init(self, key: jax.Array, qpos: jax.Array):
         return qpos, kitchen_init_state(qpos[N_ROBOT_QPOS:])
 
+    def reset_ops(self) -> list[dict]:
+        return []  # init only starts the task state; the key is unused
+
     def evaluate(self, robot, data: mjx.Data, state):
         reward, state, terms = kitchen_reward(data.qpos[N_ROBOT_QPOS:], state, self.strict_order)
         return reward, state["next"] >= N_SUBTASKS, state, terms

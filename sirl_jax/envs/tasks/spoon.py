@@ -135,6 +135,9 @@ class SpoonTask(Task):
     def init(self, key, qpos):
         return qpos, jnp.zeros((), jnp.int32)
 
+    def reset_ops(self) -> list[dict]:
+        return []  # init only starts the task state; the key is unused
+
     def evaluate(self, robot, data: mjx.Data, step):
         hands = manip.hand_sites(robot, data)
         reward, terms = spoon_reward(

@@ -161,6 +161,9 @@ class TruckTask(Task):
         return qpos, {"status": jnp.full((n,), ON_TRUCK, jnp.int32),
                       "z0": jnp.full((n,), jnp.nan, jnp.float32)}  # fmt: skip
 
+    def reset_ops(self) -> list[dict]:
+        return []  # init only starts the task state; the key is unused
+
     def evaluate(self, robot, data: mjx.Data, state):
         packages = data.xpos[self._packages]
         z0 = jnp.where(jnp.isnan(state["z0"]), packages[:, 2], state["z0"])
