@@ -101,14 +101,18 @@ class Recorder:
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         self.template = mjx.put_data(model, data)
-        self.fields = [f.name for f in dataclasses.fields(mjx.Data) if f.name != "_impl"
-                       and np.shape(getattr(data, f.name, None)) ==
-                       np.shape(getattr(self.template, f.name))]  # fmt: skip
+        # {name: mjx shape}: MjData keeps rotation matrices flat ([n, 9]), mjx.Data as [n, 3, 3]
+        self.fields = {f.name: np.shape(getattr(self.template, f.name))
+                       for f in dataclasses.fields(mjx.Data)
+                       if f.name != "_impl" and hasattr(data, f.name)
+                       and np.size(getattr(data, f.name)) ==
+                       np.size(getattr(self.template, f.name))}  # fmt: skip
         self.episodes: list[list[dict]] = []
 
     def __call__(self, data, action) -> None:
         del action
-        self.episodes[-1].append({k: np.array(getattr(data, k)) for k in self.fields})
+        self.episodes[-1].append({k: np.reshape(getattr(data, k), shape).copy()
+                                  for k, shape in self.fields.items()})  # fmt: skip
 
 
 def score_cpu(env, recorder: Recorder, initial: list, max_steps: int) -> list[dict]:
