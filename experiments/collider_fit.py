@@ -20,6 +20,12 @@ within about 1 mm for these link sizes). HumanoidBench's robot is read from a ch
     .venv/bin/python -m experiments.collider_fit \
         --hb-robot CHECKOUT/humanoid_bench/assets/robots/h1hand_pos.xml
         [--tolerance 0.01] [--out docs/results/collider_fit.json]
+        [--refit] [--capsules K --links left_hip_pitch_link,left_knee_link]
+
+`--capsules K` asks how close K capsules per link could come: for each link of `--links`, the
+minimax fit of K capsules at once (max of HumanoidBench outside their union and their
+surfaces outside HumanoidBench's hull), Nelder-Mead from four starts (the capsules side by
+side along the link's second or third principal axis), the best printed.
 """
 
 from __future__ import annotations
@@ -199,10 +205,16 @@ def main(argv=None) -> None:
         "--variant", choices=("h1hand", "h1"), default="h1hand", help="our robot to compare"
     )
     p.add_argument("--refit", action="store_true", help="print refitted capsules, one per line")
+    p.add_argument("--capsules", type=int, default=0, help="fit K capsules per --links link")
+    p.add_argument("--links", default="left_hip_pitch_link,left_knee_link,pelvis,torso_link")
     args = p.parse_args(argv)
     if not args.hb_robot.is_file():
         raise SystemExit(f"error: --hb-robot {str(args.hb_robot)!r} is not a file")
     hb = mujoco.MjModel.from_xml_path(str(args.hb_robot))
+    if args.capsules:
+        for body in args.links.split(","):
+            print(json.dumps(multi_fit(hb, h1.load_model(args.variant), body, args.capsules)))
+        return
     if args.refit:
         for row in refit(hb, h1.load_model(args.variant)):
             print(json.dumps(row))
@@ -301,6 +313,50 @@ def refit(hb: mujoco.MjModel, ours: mujoco.MjModel, seed: int = 0) -> list[dict]
                         "fromto": [round(float(v), 4) for v in np.concatenate(local)],
                         "cost_start": float(before), "cost_fit": float(after)})  # fmt: skip
     return out
+
+
+def multi_fit(hb: mujoco.MjModel, ours: mujoco.MjModel, body: str, k: int, seed: int = 0):
+    """The best minimax fit of k capsules at once to HumanoidBench's colliders of `body` (m)."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(seed)
+    d_hb = _posed(hb, hb.qpos0[: ours.nq].copy())
+    if body not in (col := _colliders(hb)):
+        raise SystemExit(f"error: HumanoidBench has no collider on {body!r}")
+    verts, planes = _hull_points([_Geom(hb, d_hb, g, rng) for g in col[body]])
+    sub = verts[rng.choice(len(verts), min(len(verts), 2000), replace=False)]
+    unit = rng.normal(size=(400, 3))
+    unit /= np.linalg.norm(unit, axis=1, keepdims=True)
+    t = rng.uniform(0, 1, 400)
+    centre = sub.mean(0)
+    axes = np.linalg.svd(sub - centre)[2]
+    proj = (sub - centre) @ axes.T
+
+    def cost(x):
+        gap, out = np.full(len(sub), np.inf), 0.0
+        for a, b, r in ((x[i:i + 3], x[i + 3:i + 6], abs(x[i + 6])) for i in range(0, 7 * k, 7)):
+            ab = b - a
+            s = np.clip((sub - a) @ ab / max(ab @ ab, 1e-12), 0, 1)
+            dist = np.linalg.norm(sub - a - s[:, None] * ab, axis=1)
+            gap = np.minimum(gap, np.maximum(dist - r, 0))
+            surf = a + t[:, None] * ab + r * unit
+            inside = [np.maximum((surf @ p[:, :3].T + p[:, 3]).max(1), 0) for p in planes]
+            out = max(out, np.min(inside, 0).max())
+        return max(gap.max(), out)
+
+    best = np.inf
+    for trial in range(4):
+        side, across = 1 + trial % 2, 2 - trial % 2
+        r0 = np.percentile(np.abs(proj[:, across]), 60) * (0.8 if trial > 1 else 1.0)
+        x0 = []
+        for i in range(k):
+            off = centre + axes[side] * (i - (k - 1) / 2) * np.ptp(proj[:, side]) / (k + 1)
+            x0 += [*(off + axes[0] * (proj[:, 0].min() + r0)),
+                   *(off + axes[0] * (proj[:, 0].max() - r0)), r0]  # fmt: skip
+        res = minimize(cost, np.array(x0), method="Nelder-Mead",
+                       options={"maxiter": 20000, "xatol": 1e-5, "fatol": 1e-6, "adaptive": True})
+        best = min(best, float(res.fun))
+    return {"body": body, "capsules": k, "cost_fit": best}
 
 
 if __name__ == "__main__":
