@@ -98,7 +98,7 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     enable_compilation_cache()
     rows = json.loads(args.out.read_text()) if args.out and args.out.exists() else []
-    done = {r["task"] for r in rows} | {r.get("name") for r in rows}
+    done = {r["name"] for r in rows}
     for name in args.tasks.split(","):
         if name not in every:
             raise SystemExit(f"error: unknown task {name!r}; allowed: {', '.join(every)}")

@@ -69,7 +69,7 @@ def cpu_episodes(export_dir: Path, contract: dict, policy: str, initial: list, m
     def on_reset():
         box.update(episode=box["episode"] + 1, t=0)
         if recorder is not None:
-            recorder.episodes.append([])
+            recorder.new_episode()
         if policy == "planner":
             box["state"] = zero
         elif policy == "random":
@@ -108,6 +108,9 @@ class Recorder:
                        and np.size(getattr(data, f.name)) ==
                        np.size(getattr(self.template, f.name))}  # fmt: skip
         self.episodes: list[list[dict]] = []
+
+    def new_episode(self) -> None:
+        self.episodes.append([])
 
     def __call__(self, data, action) -> None:
         del action
@@ -162,9 +165,10 @@ def mjx_episodes(export_dir: Path, contract: dict, policy: str, initial: list, m
         prior = policy_fn(config.agent, A, params)
     elif policy == "planner":
         plan, zero = load_planner(export_dir, contract)
-    steps = max_steps if policy == "random" else 1  # a placeholder for the other policies
-    actions = np.stack([random_actions(seed, e, max_steps, A)[:steps]
-                        for e in range(len(initial))])  # fmt: skip
+    if policy == "random":
+        actions = np.stack([random_actions(seed, e, max_steps, A) for e in range(len(initial))])
+    else:  # a placeholder the scan does not read
+        actions = np.zeros((len(initial), 1, A), np.float32)
 
     def episode(xs):
         qpos, qvel, values, obs0, acts, e = xs
@@ -197,17 +201,17 @@ def mjx_episodes(export_dir: Path, contract: dict, policy: str, initial: list, m
     qvel = jnp.asarray(np.stack([v for _, v, _ in initial]), jnp.float32)
     values = {k: jnp.asarray(np.stack([x[k] for _, _, x in initial]), jnp.float32)
               for k in initial[0][2]}  # fmt: skip
-    obs0 = jnp.asarray(np.stack([_initial_obs(export_dir, contract, *i) for i in initial]))
+    model = S.load_model(export_dir, contract)
+    obs0 = jnp.asarray(np.stack([_initial_obs(model, contract, *i) for i in initial]))
     xs = (qpos, qvel, values, obs0, jnp.asarray(actions), jnp.arange(len(initial)))
     ret, length, done, obs = jax.device_get(jax.jit(lambda xs: jax.lax.map(episode, xs))(xs))
     return [{"return": float(ret[i]), "length": int(length[i]), "terminated": bool(done[i]),
              "obs": obs[i, : int(length[i]) + 1]} for i in range(len(initial))]  # fmt: skip
 
 
-def _initial_obs(export_dir: Path, contract: dict, qpos, qvel, values) -> np.ndarray:
+def _initial_obs(model, contract: dict, qpos, qvel, values) -> np.ndarray:
     import mujoco
 
-    model = S.load_model(export_dir, contract)
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = qpos, qvel
     mujoco.mj_kinematics(model, data)  # site positions of task fields

@@ -68,7 +68,6 @@ class BalanceTask(Task):
         self.name = name
         self.free_pivot = name == "balance_hard"
         self.contact_rule = contact_rule
-        self.reads_contact_slots = contact_rule == "contacts"
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         groups = robot_groups(variant)
@@ -118,6 +117,10 @@ class BalanceTask(Task):
         self._model = model
         self._robot_sphere = PairQuery(model, robot_ids, [sphere])
         self._on_floor = np.concatenate([robot_ids, [board]])
+
+    @property
+    def reads_contact_slots(self) -> bool:
+        return self.contact_rule == "contacts"
 
     def _bad_contact(self, data: mjx.Data) -> jax.Array:
         if self.contact_rule == "query":

@@ -190,13 +190,16 @@ class _ContactTask(Task):
         if contact_rule not in CONTACT_RULES:
             raise ValueError(f"contact_rule={contact_rule!r}; allowed: {CONTACT_RULES}")
         self.contact_rule = contact_rule
-        self.reads_contact_slots = contact_rule == "contacts"
 
     def bind(self, model, robot) -> None:
         ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in self._penalised_names]
         self._penalised = jnp.asarray(geom_mask(model, ids))
         robot_ids = np.concatenate(list(robot.geom_ids.values()))
         self._query = PairQuery(model, robot_ids, ids)
+
+    @property
+    def reads_contact_slots(self) -> bool:
+        return self.contact_rule == "contacts"
 
     def _touching(self, data: mjx.Data) -> jax.Array:
         if self.contact_rule == "query":
