@@ -91,11 +91,13 @@ def _finite(x: float, digits: int = 3):
 
 
 def run_arm(config: Config, seeds: int, out: Path, label: str,
-            max_chunks: int | None = None) -> dict:  # fmt: skip
+            max_chunks: int | None = None, budget_cpu_s: float | None = None) -> dict:  # fmt: skip
     """Trains `seeds` seeds of `config` vmapped, resumably; returns done.json's summary.
 
     max_chunks: stop after this many chunks of this call (a timing probe); nothing is marked
-    done then.
+    done then. budget_cpu_s: stop (evaluated, checkpointed and done) once the training chunks
+    have used this much process CPU time (all threads, evaluations excluded): the unit a
+    config's learning is compared in when other work shares the machine.
     """
     enable_compilation_cache()
     if (out / "done.json").exists():
@@ -114,11 +116,13 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
     eval_keys = jax.vmap(lambda k: jax.random.fold_in(k, 0x6576616C))(keys)
     train_csv, eval_csv = CsvLog(out / "train.csv"), CsvLog(out / "eval.csv")
     ckpt = Checkpointer(out / "checkpoints", max_to_keep=2)
-    start, wall0 = time.perf_counter(), 0.0
+    start, wall0, cpu0 = time.perf_counter(), 0.0, 0.0
+    eval_cpu = 0.0  # process CPU time spent in evaluations this call, excluded from cpu_s
     if ckpt.latest_step() is not None:
         restored = ckpt.restore({"state": jax.eval_shape(init, keys)})
         state, done = commit(restored["state"]), ckpt.latest_step()
         wall0 = float(restored["meta"]["wall_s"])
+        cpu0 = float(restored["meta"].get("cpu_s", 0.0))
         train_csv.drop_after(done)
         eval_csv.drop_after(done)
         print(f"{label}: resumed from env step {done:,} per seed", flush=True)
@@ -133,7 +137,12 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
         state, step = place(state, shardings), sharded_step(jax.vmap(train.step), shardings)
         print(f"{label}: {seeds} seeds split over {devices} devices", flush=True)
 
+    def train_cpu() -> float:
+        return cpu0 + time.process_time() - cpu_start - eval_cpu
+
     def run_eval(state, env_steps: int, wall: float) -> None:
+        nonlocal eval_cpu
+        c0 = time.process_time()
         ev = jax.device_get(evaluate(state, jax.vmap(jax.random.fold_in, (0, None))(
             eval_keys, env_steps)))  # fmt: skip
         eval_csv.extend([{
@@ -142,15 +151,20 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
             "planner_length": float(ev["eval/planner_length"][s]),
             "policy_return": _finite(ev["eval/policy_return"][s]),
             "policy_length": float(ev["eval/policy_length"][s]),
-            "r_max": _finite(ev["eval/r_max"][s]),
+            "r_max": _finite(ev["eval/r_max"][s]), "cpu_s": round(train_cpu(), 1),
         } for s in range(seeds)])  # fmt: skip
+        eval_cpu += time.process_time() - c0
         print(f"{label}: eval @ {env_steps:,}: planner {np.round(ev['eval/planner_return'], 1)}"
               f" policy {np.round(ev['eval/policy_return'], 1)} ({wall:.0f} s)", flush=True)
 
+    cpu_start = time.process_time()
     if done == 0 and max_chunks is None:
         run_eval(state, 0, 0.0)
-    chunks, timing = 0, []
+    chunks, timing, stopped = 0, [], "steps"
     while done < tc.steps and (max_chunks is None or chunks < max_chunks):
+        if budget_cpu_s is not None and train_cpu() >= budget_cpu_s:
+            stopped = "cpu budget"
+            break
         state, m = step(state)
         m = jax.device_get(m)
         blowups = m["env/blowups"] > tc.max_blowup_rate * tc.steps_per_call
@@ -166,11 +180,13 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
             "episode_return": _finite(m["episode/return"][s]),
             "episode_length": _finite(m["episode/length"][s], 1),
             "r_max": _finite(m["r_max"][s]), "updates": int(m["updates"][s]),
+            "cpu_s": round(train_cpu(), 1),
         } for s in range(seeds)])  # fmt: skip
+        over = budget_cpu_s is not None and train_cpu() >= budget_cpu_s
         if max_chunks is None and (done // tc.eval_every > before // tc.eval_every
-                                   or done >= tc.steps):  # fmt: skip
+                                   or done >= tc.steps or over):  # fmt: skip
             run_eval(state, done, wall)
-            ckpt.save(done, {"state": state}, {"wall_s": wall})
+            ckpt.save(done, {"state": state}, {"wall_s": wall, "cpu_s": train_cpu()})
     ckpt.close()
     rate = math.nan
     if len(timing) >= 3:  # steady chunks: the first planning one still compiles or pretrains
@@ -178,7 +194,8 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
         rate = (s1 - s0) / (t1 - t0)
     summary = {"label": label, "task": tc.task, "seeds": seeds, "env_steps": done,
                "wall_s": round(wall0 + time.perf_counter() - start, 1),
-               "env_steps_per_s_per_seed": round(rate, 2)}  # fmt: skip
+               "env_steps_per_s_per_seed": round(rate, 2),
+               "train_cpu_s": round(train_cpu(), 1), "stopped": stopped}  # fmt: skip
     if max_chunks is None:
         (out / "done.json").write_text(json.dumps(summary, indent=1))
     print(f"{label}: {summary}", flush=True)
