@@ -18,9 +18,9 @@ import numpy as np
 import tyro
 
 from experiments.paper.common import run_arm
-from sirl_jax.config import fit_to_task
 from sirl_jax.envs import spec
 from sirl_jax.presets import get_preset
+from sirl_jax.run.config_rules import fit_to_task
 from sirl_jax.run.plot import find_collapse
 from sirl_jax.run.runlog import CsvLog
 

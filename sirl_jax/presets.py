@@ -10,9 +10,9 @@
   gpu-fast       gpu with 16 envs per seed and UTD 1/16 (one update per vectorised step), as
                  the official TD-MPC2 vectorised branch runs: a deviation from the paper.
 
-The CPU presets fit any task (`fits_task`): the shell applies `config.fit_to_task` to them,
-which raises their episode-length-dependent sizes (replay capacity, seed steps, eval cadence)
-for tasks with longer episodes than the pendulum's.
+The CPU presets fit any task (`fits_task`): the shell applies `fit_to_task`
+(`sirl_jax/run/config_rules.py`) to them, which raises their episode-length-dependent sizes
+(replay capacity, seed steps, eval cadence) for tasks with longer episodes than the pendulum's.
 """
 
 from __future__ import annotations

@@ -16,9 +16,10 @@ import numpy as np
 import pytest
 
 from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
-from sirl_jax.config import Config, TrainConfig, fit_to_task
+from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs.classic import PendulumSwingup
 from sirl_jax.presets import PRESETS, get_preset, register_preset
+from sirl_jax.run.config_rules import fit_to_task
 from sirl_jax.train import make_train, update_schedule
 
 E, K, T, SEED_STEPS, UTD = 2, 25, 50, 100, 0.75

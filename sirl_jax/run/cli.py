@@ -4,7 +4,7 @@ This module parses argv and dispatches; the run loop is `runner.py`. `train` tur
 dataclass tree into flags with tyro (`--agent.horizon 3`, `--train.num-envs 4`: every field is
 settable), accepts the short flags of `SHORT_FLAGS` (`--task`, `--seed`, `--beta`, ...) and
 starts from a named preset (`--preset smoke`); a CPU preset is sized for the task first
-(`config.fit_to_task`), and flags given override it.
+(`config_rules.fit_to_task`), and flags given override it.
 
 Exit codes: 0 done (or stopped by Ctrl-C after saving), 1 training failure (non-finite loss or
 observation, out of memory), 2 bad input (one `error:` line), 130 aborted by a second Ctrl-C.
@@ -21,11 +21,12 @@ from typing import Annotated
 
 import tyro
 
-from sirl_jax.config import Config, TrainConfig, check_resume, fit_to_task
+from sirl_jax.config import Config, TrainConfig
 from sirl_jax.presets import PRESETS
 from sirl_jax.run import runlog
 from sirl_jax.run.args import EvalArgs, ExportArgs, PlotArgs, RenderArgs, Sim2simArgs
 from sirl_jax.run.checkpoint import CheckpointError
+from sirl_jax.run.config_rules import check_resume, fit_to_task
 from sirl_jax.run.errors import TrainingFailure, UsageError
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE, EXIT_ABORTED = 0, 1, 2, 130
@@ -160,7 +161,7 @@ def _base_config(argv: list[str]) -> tuple[Config, str, dict]:
 def parse_train_args(argv: list[str]) -> tuple[TrainArgs, dict]:
     """Parses `train` flags; returns the args and what `fit_to_task` derived (and kept).
 
-    With --resume, refuses overrides outside `config.RESUME_MUTABLE`.
+    With --resume, refuses overrides outside `config_rules.RESUME_MUTABLE`.
     """
     argv = expand_short_flags(argv)
     base, preset, derived = _base_config(argv)
