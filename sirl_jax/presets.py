@@ -3,8 +3,10 @@
   default        the reference: TD-MPC2 5M + TDMPBC (beta 1, G = R_max), HumanoidBench's settings.
   tdmpbc-paper   the TDMPBC paper's runs: default with the HumanoidBench fork's 2023 policy
                  log-prob (`entropy_form="v1"`), the one setting where the fork differs.
-  smoke          a CPU-sized run on the pendulum swing-up: tiny model, 4 envs, a few thousand steps.
-  cpu            a CPU-sized learning run on the pendulum swing-up (experiments/learning_check.py).
+  smoke          a CPU-sized run on the pendulum swing-up: `AgentConfig.tiny` (batch 32), 4 envs,
+                 a few thousand steps.
+  cpu            a CPU-sized learning run on the pendulum swing-up: `AgentConfig.small`, 8 envs,
+                 UTD 0.25 (experiments/learning_check.py).
   gpu            the reference agent on h1hand-walk for one GPU, one seed of the paper's setting
                  (1 env, UTD 1); S seeds are vmapped by the caller (docs/training.md).
   gpu-fast       gpu with 16 envs per seed and UTD 1/16 (one update per vectorised step), as
@@ -92,18 +94,7 @@ def _smoke() -> Config:
 
 def _cpu() -> Config:
     return Config(
-        agent=AgentConfig(
-            model_size="tiny",
-            latent_dim=64,
-            mlp_dim=128,
-            enc_dim=64,
-            num_q=2,
-            num_samples=64,
-            num_elites=8,
-            num_pi_trajs=8,
-            iterations=2,
-            batch_size=64,
-        ),
+        agent=AgentConfig.small(),
         train=TrainConfig(
             task="pendulum",
             steps=30_000,

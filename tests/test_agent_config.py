@@ -47,6 +47,8 @@ def test_presets_and_overrides():
     c = AgentConfig(model_size="19M", mlp_dim=64)
     assert c.arch.mlp_dim == 64 and c.arch.enc_dim == 1024 and c.mlp_dim == 64
     assert AgentConfig.tiny().arch.latent_dim == 32
+    assert AgentConfig.small().arch == (64, 128, 64, 2, 2)  # enc, mlp, latent, layers, Qs
+    assert AgentConfig.small(num_q=None).arch.num_q == 5  # an override replaces the field
 
 
 @pytest.mark.timeout(30)

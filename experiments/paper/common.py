@@ -68,7 +68,8 @@ def task_id(task: str, scale: str) -> str:
 def scale_config(scale: str, task: str, beta: float = 1.0, g_source: str = "rmax",
                  steps: int | None = None) -> Config:  # fmt: skip
     """The paper's config (5M model, 512 x 8 MPPI, 1 env, 2M steps), or its CPU stand-in: the
-    `cpu` preset's agent (latent 64, MLP 128, 2 Qs, 64 x 2 MPPI, batch 64) on 4 envs, UTD 0.25."""
+    `cpu` preset's agent (`AgentConfig.small`: latent 64, MLP 128, 2 Qs, 64 x 2 MPPI, batch 64)
+    on 4 envs, UTD 0.25."""
     if scale not in SCALES:
         raise SystemExit(f"error: --scale {scale!r} is invalid; allowed: {', '.join(SCALES)}")
     sirl = SirlConfig(beta=beta, g_source=g_source)
@@ -77,9 +78,7 @@ def scale_config(scale: str, task: str, beta: float = 1.0, g_source: str = "rmax
                       train=TrainConfig(task=task_id(task, scale), steps=steps or 2_000_000))
     steps = steps or 80_000
     return Config(
-        agent=AgentConfig(model_size="tiny", latent_dim=64, mlp_dim=128, enc_dim=64, num_q=2,
-                          num_samples=64, num_elites=8, num_pi_trajs=8, iterations=2,
-                          batch_size=64, sirl=sirl),
+        agent=AgentConfig.small(sirl=sirl),
         train=TrainConfig(task=task_id(task, scale), steps=steps, num_envs=4, chunk_steps=50,
                           utd=0.25, seed_steps=5_000, buffer_size=steps,
                           eval_every=max(steps // 4, 1), eval_episodes=4),

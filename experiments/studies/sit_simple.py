@@ -27,10 +27,8 @@ from sirl_jax.run.runlog import CsvLog
 TASK = "h1hand-sit_simple-v0"
 ARMS = {"tdmpc2": 0.0, "tdmpbc": 1.0}
 
-# The `cpu` preset's agent: latent 64, MLP 128, encoder 64, 2 Qs, MPPI 64 x 2, batch 64.
-CPU_AGENT = dict(model_size="tiny", latent_dim=64, mlp_dim=128, enc_dim=64, num_q=2,
-                 num_samples=64, num_elites=8, num_pi_trajs=8, iterations=2, batch_size=64)
-# name -> (agent fields over CPU_AGENT, train fields). Seed steps: one episode length per env.
+# name -> (agent fields over `AgentConfig.small`, the `cpu` preset's agent: latent 64, MLP 128,
+# encoder 64, 2 Qs, MPPI 64 x 2, batch 64; train fields). Seed steps: one episode length per env.
 PILOTS: dict[str, tuple[dict, dict]] = {
     "e8-utd025": ({}, dict(num_envs=8, utd=0.25, seed_steps=8_000)),
     "e4-utd1": ({}, dict(num_envs=4, utd=1.0, seed_steps=4_000)),
@@ -47,7 +45,7 @@ def config(pilot: str, beta: float, steps: int) -> Config:
         raise SystemExit(f"error: pilot {pilot!r} is unknown; allowed: {', '.join(PILOTS)}")
     agent, train = PILOTS[pilot]
     return Config(
-        agent=AgentConfig(**{**CPU_AGENT, **agent}, sirl=SirlConfig(beta=beta)),
+        agent=AgentConfig.small(**agent, sirl=SirlConfig(beta=beta)),
         train=TrainConfig(task=TASK, steps=steps, chunk_steps=50, buffer_size=steps,
                           eval_every=5_000 if steps <= 100_000 else 10_000, eval_episodes=4,
                           **train),

@@ -267,9 +267,13 @@ class AgentConfig:
             )
         )
 
+    # The two non-reference agents, each defined here once; `overrides` replace any field.
+
     @classmethod
     def tiny(cls, **overrides) -> AgentConfig:
-        """A small, fast, non-reference configuration for tests and CPU smoke runs."""
+        """The fastest agent, for tests and CPU smoke runs (the `smoke` preset's, with batch 32):
+        the tiny model (32 wide, 5 Qs), MPPI 32 x 2 with 8 elites and 4 policy trajectories,
+        batch 8."""
         base = dict(
             model_size="tiny",
             num_samples=32,
@@ -278,5 +282,23 @@ class AgentConfig:
             iterations=2,
             batch_size=8,
         )
-        base.update(overrides)
-        return cls(**base)
+        return cls(**{**base, **overrides})
+
+    @classmethod
+    def small(cls, **overrides) -> AgentConfig:
+        """The CPU learning agent (the `cpu` preset's, and the CPU stand-in of the paper's runs):
+        latent 64, MLP 128, encoder 64, 2 Qs, MPPI 64 x 2 with 8 elites and 8 policy
+        trajectories, batch 64."""
+        base = dict(
+            model_size="tiny",
+            latent_dim=64,
+            mlp_dim=128,
+            enc_dim=64,
+            num_q=2,
+            num_samples=64,
+            num_elites=8,
+            num_pi_trajs=8,
+            iterations=2,
+            batch_size=64,
+        )
+        return cls(**{**base, **overrides})
