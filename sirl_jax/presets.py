@@ -6,7 +6,7 @@
   smoke          a CPU-sized run on the pendulum swing-up: `AgentConfig.tiny` (batch 32), 4 envs,
                  a few thousand steps.
   cpu            a CPU-sized learning run on the pendulum swing-up: `AgentConfig.small`, 8 envs,
-                 UTD 0.25 (experiments/learning_check.py).
+                 UTD 0.25 (experiments/studies/learning_check.py).
   gpu            the reference agent on h1hand-walk for one GPU, one seed of the paper's setting
                  (1 env, UTD 1); S seeds are vmapped by the caller (docs/training.md).
   gpu-fast       gpu with 16 envs per seed and UTD 1/16 (one update per vectorised step), as

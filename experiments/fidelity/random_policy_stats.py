@@ -8,7 +8,7 @@ episodes that ended (terminated or truncated) within the T steps (`--steps` at l
 episode length counts full-length episodes too). Manipulation tasks run on their own variant
 (h1hand; h1strong for highbar_hard).
 
-    .venv/bin/python -m experiments.random_policy_stats [--variant h1hand] [--num-envs 64]
+    .venv/bin/python -m experiments.fidelity.random_policy_stats [--variant h1hand] [--num-envs 64]
         [--steps 200] [--tasks walk,stand] [--budget-s 1800]
 
 The HumanoidBench numbers (spec §3 and §7: 1000-step runs, seed 0, MuJoCo C) are printed beside

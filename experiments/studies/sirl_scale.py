@@ -1,7 +1,7 @@
 """The TDMPBC term's two open scale choices, measured (docs/agent.md, "The term's scale").
 
-    .venv/bin/python -m experiments.sirl_scale init       # sirl_loss at initialisation
-    .venv/bin/python -m experiments.sirl_scale run        # clamped actions on a short h1hand run
+    .venv/bin/python -m experiments.studies.sirl_scale --what init  # sirl_loss at initialisation
+    .venv/bin/python -m experiments.studies.sirl_scale --what run   # clamped actions, h1hand run
 
 `init`: one update of a freshly initialised agent at h1hand sizes (O 151, A 61) on a synthetic
 batch whose buffer actions are uniform in [-1, 1], with a fraction of their components set to

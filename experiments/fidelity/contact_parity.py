@@ -14,7 +14,7 @@ in MJX (each env's first episode, up to its termination), draw `--states` of the
   with a pole that does not involve the floor; balance: root z < 0.8, a sphere contact with
   neither the floor nor the board, or a floor contact without the sphere.
 
-    .venv/bin/python -m experiments.contact_parity [--tasks hurdle,maze] [--states 1000]
+    .venv/bin/python -m experiments.fidelity.contact_parity [--tasks hurdle,maze] [--states 1000]
         [--contact-rule query|contacts] [--num-envs 64] [--steps 80] [--seed 0]
         [--out docs/results/contact_parity.json]
 

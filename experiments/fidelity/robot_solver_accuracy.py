@@ -9,7 +9,7 @@ candidate (MuJoCo C, and MJX for the candidates listed in --mjx) it reports:
   stand:  seconds until the pelvis drops below 0.2 m when holding the keyframe action
           (HumanoidBench: about 1.5-2 s).
 
-Run: .venv/bin/python -m experiments.robot_solver_accuracy [--mjx 1,5,0 2,6,1]
+Run: .venv/bin/python -m experiments.fidelity.robot_solver_accuracy [--mjx 1,5,0 2,6,1]
 """
 
 from __future__ import annotations

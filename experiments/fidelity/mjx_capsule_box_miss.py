@@ -10,7 +10,7 @@ One static box (a maze block, half 0.75 x 0.75 x 0.6) and one free capsule (r 0.
 2. a sweep of random poses around the box's surface: how many C contacts MJX misses, and how
    deep they are.
 
-    .venv/bin/python -m experiments.mjx_capsule_box_miss [--poses 4000] [--seed 0]
+    .venv/bin/python -m experiments.fidelity.mjx_capsule_box_miss [--poses 4000] [--seed 0]
 
 The misses come from `collision_convex._capsule_convex`. It picks the face of least
 penetration and clips the capsule's segment to that face; here the segment lies wholly outside

@@ -1,7 +1,8 @@
 """Does a CPU preset learn robustly? 3 seeds vmapped, eval curve per seed, collapse check.
 
-    .venv/bin/python -m experiments.preset_robustness                         # cpu, pendulum
-    .venv/bin/python -m experiments.preset_robustness --task dmc:CartpoleSwingup --steps 60000
+    .venv/bin/python -m experiments.studies.preset_robustness       # cpu, pendulum
+    .venv/bin/python -m experiments.studies.preset_robustness --task dmc:CartpoleSwingup \
+        --steps 60000
 
 Runs the preset (sized for the task) with `experiments.paper.common.run_arm` under
 results/robustness/<preset>-<task>/ (resumable), then prints per seed the best and final eval

@@ -1,8 +1,8 @@
 """The first humanoid study: TD-MPC2 (beta = 0) against TDMPBC (beta = 1) at CPU scale.
 
-    .venv/bin/python -m experiments.humanoid_study --arm tdmpc2     # beta 0, 3 seeds vmapped
-    .venv/bin/python -m experiments.humanoid_study --arm tdmpbc     # beta 1, 3 seeds vmapped
-    .venv/bin/python -m experiments.humanoid_study --report         # CSV + PNG to docs/results
+    .venv/bin/python -m experiments.studies.humanoid_study --arm tdmpc2  # beta 0, 3 seeds vmapped
+    .venv/bin/python -m experiments.studies.humanoid_study --arm tdmpbc  # beta 1, 3 seeds vmapped
+    .venv/bin/python -m experiments.studies.humanoid_study --report      # CSV + PNG, docs/results
 
 Config: `experiments.paper.common.scale_config("cpu", "stand")`, the `cpu` preset's agent
 (latent 64, MLP 128, 2 Qs, MPPI 64 samples x 2 iterations, horizon 3, batch 64) on

@@ -1,7 +1,7 @@
 """Does a CPU-sized config learn? Trains one seed and writes the return curve (CSV + PNG).
 
-    .venv/bin/python -m experiments.learning_check                       # pendulum, `cpu` preset
-    .venv/bin/python -m experiments.learning_check --task dmc:CartpoleSwingup --steps 100000
+    .venv/bin/python -m experiments.studies.learning_check         # pendulum, `cpu` preset
+    .venv/bin/python -m experiments.studies.learning_check --task dmc:CartpoleSwingup --steps 100000
 
 Evaluates the planner and the policy prior (eval mode, `eval_episodes` episodes) every
 `eval_every` env steps, and once before any training (the random-init agent). Writes
@@ -26,7 +26,7 @@ from sirl_jax.presets import get_preset
 from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.train import make_train
 
-OUT = Path(__file__).parent / "out"
+OUT = Path(__file__).parents[1] / "out"  # experiments/out/
 
 
 @dataclasses.dataclass(frozen=True)

@@ -17,7 +17,7 @@ Distances to primitives are analytic; the distance of an outside point to a conv
 the distance to the nearest of ~20,000 area-uniform samples of its surface (an upper bound,
 within about 1 mm for these link sizes). HumanoidBench's robot is read from a checkout:
 
-    .venv/bin/python -m experiments.collider_fit \
+    .venv/bin/python -m experiments.fidelity.collider_fit \
         --hb-robot CHECKOUT/humanoid_bench/assets/robots/h1hand_pos.xml
         [--tolerance 0.01] [--out docs/results/collider_fit.json]
         [--refit] [--capsules K --links left_hip_pitch_link,left_knee_link]

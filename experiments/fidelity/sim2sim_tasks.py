@@ -10,7 +10,7 @@ loop where the task's rule does. A task whose contract cannot describe its reset
 observation is recorded with the reason (the manipulation tasks whose objects are placed by
 task code).
 
-    .venv/bin/python -m experiments.sim2sim_tasks [--tasks stand,reach] [--episodes 5]
+    .venv/bin/python -m experiments.fidelity.sim2sim_tasks [--tasks stand,reach] [--episodes 5]
         [--max-steps 300] [--seed 0] [--out docs/results/sim2sim_tasks.json]
 
 Rows are written to `--out` after each task, and a rerun skips the tasks already there, so an
