@@ -19,13 +19,13 @@ import pytest
 from mujoco import mjx
 
 from sirl_jax.envs.humanoid import HumanoidEnv
-from sirl_jax.envs.tasks.obstacles import (
+from sirl_jax.envs.tasks.locomotion.obstacles import (
     WALL_DISCOUNT,
     HurdleTask,
     MazeTask,
     PoleTask,
-    add_segmented_box,
 )
+from sirl_jax.envs.tasks.scene import add_segmented_box
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -157,8 +157,17 @@ def test_segmented_walls_tile_the_barrier():
     """A 71 m barrier cut into 15 pieces of at most 5 m: the same solid (end to end, no gap or
     overlap, the other sizes kept), each with a bounding sphere MJX can rank."""
     spec = mujoco.MjSpec()
-    names = add_segmented_box(spec, 1, "wall", (35.0, -4.725, 1.0), (35.5, 0.275, 1.0), 5.0)
+    names = add_segmented_box(spec.worldbody, "wall", (35.0, -4.725, 1.0), (35.5, 0.275, 1.0), 5.0,
+                              along="longest", contype=1, conaffinity=0)  # fmt: skip
+    # along="all" cuts every axis longer than a segment: 3 x 3 x 1 pieces named by their indices
+    grid = add_segmented_box(spec.worldbody, "grid", (0.0, 0.0, 5.0), (1.0, 0.75, 0.2), 0.7)
+    assert grid == [f"grid_{i}{j}0" for i in range(3) for j in range(3)]
+    with pytest.raises(ValueError, match="along='diagonal' is invalid"):
+        add_segmented_box(spec.worldbody, "bad", (0, 0, 0), (1, 1, 1), 0.5, along="diagonal")
     m = spec.compile()
+    volume = sum(8 * np.prod(m.geom(n).size) for n in grid)
+    assert volume == pytest.approx(8 * 1.0 * 0.75 * 0.2)
+    assert {int(m.geom(n).group[0]) for n in grid} == {3} and m.geom(names[0]).group[0] == 3
     assert len(names) == 15 and all(m.geom(n).id >= 0 for n in names)
     lo = np.array([m.geom(n).pos[0] - m.geom(n).size[0] for n in names])
     hi = np.array([m.geom(n).pos[0] + m.geom(n).size[0] for n in names])

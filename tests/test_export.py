@@ -174,7 +174,7 @@ def test_h1hand_contract_obs_layout_reward_and_termination_match_the_env(tmp_pat
     reward, done, _, _ = env.task.evaluate(env.robot, d, ())
     assert abs(S.reward(contract, model, data, action) - float(reward)) < 1e-5
     assert S.terminated(contract, model, data) == bool(done)
-    from sirl_jax.envs.tasks.basic import walk_reward
+    from sirl_jax.envs.tasks.locomotion.basic import walk_reward
 
     r, vx = env.robot, model.sensor("pelvis_subtreelinvel").adr[0]
     for speed in (1.0, 5.0):  # walk and run: the move branch, v_x inside the margin

@@ -1,6 +1,6 @@
-"""HumanoidBench Kitchen (`sirl_jax/envs/tasks/kitchen.py`): sizes, the subtask reward and its
-order, the articulated furniture (CPU MuJoCo on the model MJX compiles). The compiled MJX
-rollout is `tests/test_manipulation.py::test_rollout[h1hand-kitchen-v0]` (slow)."""
+"""HumanoidBench Kitchen (`sirl_jax/envs/tasks/manipulation/kitchen.py`): sizes, the subtask
+reward and its order, the articulated furniture (CPU MuJoCo on the model MJX compiles). The
+compiled MJX rollout is `tests/test_manipulation.py::test_rollout[h1hand-kitchen-v0]` (slow)."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ import pytest
 
 from sirl_jax.envs import make
 from sirl_jax.envs.humanoid import HumanoidEnv
-from sirl_jax.envs.tasks import kitchen as K
-from sirl_jax.envs.tasks.kitchen import KitchenTask, kitchen_init_state, kitchen_reward
+from sirl_jax.envs.tasks.manipulation import kitchen as K
+from sirl_jax.envs.tasks.manipulation import kitchen_scene as KS
+from sirl_jax.envs.tasks.manipulation.kitchen import KitchenTask, kitchen_init_state, kitchen_reward
 
 NQ_ROBOT = 76
 
@@ -233,17 +234,17 @@ def test_hand_pulls_the_microwave_open(env):
             m.geom_conaffinity[env.robot.geom_ids["hands"]] = 0
         d = mujoco.MjData(m)
         mujoco.mj_resetDataKeyframe(m, d, 0)
-        mujoco.mju_mulQuat(d.qpos[3:7], np.array(K._quat((0, 0, K.MICROWAVE_YAW))),
-                           np.array(K._quat((np.pi / 2, 0, 0))))  # fmt: skip
+        mujoco.mju_mulQuat(d.qpos[3:7], np.array(KS._quat((0, 0, KS.MICROWAVE_YAW))),
+                           np.array(KS._quat((np.pi / 2, 0, 0))))  # fmt: skip
         mujoco.mj_forward(m, d)
         door_pos, door_mat = d.body("microdoorroot").xpos.copy(), d.body("microdoorroot").xmat
         behind_bar = door_pos + door_mat.reshape(3, 3) @ np.array([0.47, -0.069, 0.0])
         d.qpos[:3] += behind_bar - d.geom("lh_mfdistal").xpos
-        out = np.array([np.sin(K.MICROWAVE_YAW), -np.cos(K.MICROWAVE_YAW), 0.0])
+        out = np.array([np.sin(KS.MICROWAVE_YAW), -np.cos(KS.MICROWAVE_YAW), 0.0])
         _drive(m, d, nq, nv, d.qpos[:nq].copy(), 0.2 * out, 800)
         q = d.qpos[micro]
         assert (q < -0.5) if hands_on else (abs(q) < 1e-3), q
-        assert abs(d.body("kettle").xpos[2] - K.KETTLE_POS[2]) < 0.01
+        assert abs(d.body("kettle").xpos[2] - KS.KETTLE_POS[2]) < 0.01
 
 
 @pytest.mark.timeout(120)
@@ -260,7 +261,7 @@ def test_hand_turns_the_bottom_burner_knob(env):
     d.qpos[:3] += d.body("knob 2").xpos + (-0.06, -0.038, 0.025) - d.geom("lh_mfdistal").xpos
     _drive(m, d, nq, nv, d.qpos[:nq].copy(), np.array([0.1, 0.0, 0.0]), 300)
     assert -1.18 < d.qpos[knob] < -0.58, d.qpos[knob]  # within 0.3 of -0.88
-    np.testing.assert_allclose(d.qpos[burner] * K.KNOB_PER_BURNER, d.qpos[knob], atol=0.02)
+    np.testing.assert_allclose(d.qpos[burner] * KS.KNOB_PER_BURNER, d.qpos[knob], atol=0.02)
 
 
 @pytest.mark.timeout(120)
@@ -277,7 +278,7 @@ def test_kettle_rests_on_its_burner(env):
         d.qpos[:nq], d.qvel[:nv] = pose, 0.0
         mujoco.mj_step(m, d)
         zs.append(d.body("kettle").xpos[2])
-    assert max(abs(z - K.KETTLE_POS[2]) for z in zs) < 0.01
-    np.testing.assert_allclose(d.body("kettle").xpos[:2], K.KETTLE_POS[:2], atol=1e-3)
+    assert max(abs(z - KS.KETTLE_POS[2]) for z in zs) < 0.01
+    np.testing.assert_allclose(d.body("kettle").xpos[:2], KS.KETTLE_POS[:2], atol=1e-3)
     burner = d.body("Burner 2").xpos
     assert np.linalg.norm(d.body("kettle").xpos[:2] - burner[:2]) < 0.05

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.tasks.balance import balance_reward
-from sirl_jax.envs.tasks.basic import crawl_reward, reach_reward, walk_reward
-from sirl_jax.envs.tasks.obstacles import hurdle_reward, maze_reward, pole_reward
-from sirl_jax.envs.tasks.sit import sit_reward, yaw_quat
-from sirl_jax.envs.tasks.terrain import climb_reward
+from sirl_jax.envs.tasks.locomotion.balance import balance_reward
+from sirl_jax.envs.tasks.locomotion.basic import crawl_reward, reach_reward, walk_reward
+from sirl_jax.envs.tasks.locomotion.obstacles import hurdle_reward, maze_reward, pole_reward
+from sirl_jax.envs.tasks.locomotion.sit import sit_reward, yaw_quat
+from sirl_jax.envs.tasks.locomotion.terrain import climb_reward
 
 pytestmark = pytest.mark.timeout(120)
 

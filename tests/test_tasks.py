@@ -24,9 +24,14 @@ from rollouts import hold_and_limp
 
 import sirl_jax.envs.tasks as tasks
 from sirl_jax.envs import TASKS, make
-from sirl_jax.envs.tasks.obstacles import WALL_DISCOUNT, maze_block_centres, pole_positions
-from sirl_jax.envs.tasks.sit import CHAIR_POS
-from sirl_jax.envs.tasks.terrain import slide_boxes, stair_treads
+from sirl_jax.envs.humanoid import Task
+from sirl_jax.envs.tasks.locomotion.obstacles import (
+    WALL_DISCOUNT,
+    maze_block_centres,
+    pole_positions,
+)
+from sirl_jax.envs.tasks.locomotion.sit import CHAIR_POS
+from sirl_jax.envs.tasks.locomotion.terrain import slide_boxes, stair_treads
 
 E = 4
 EPISODE = 100  # a short time limit (2 s), long enough for a limp robot to collapse
@@ -72,6 +77,31 @@ def test_registry_has_all_ids_and_aliases():
     assert TASKS["maze"].success_bar == 1200 and TASKS["reach"].success_bar == 12000
     with pytest.raises(KeyError, match="unknown task"):
         make("h1hand-fly-v0")
+
+
+@pytest.mark.timeout(120)
+def test_declared_reset_edits_match_what_init_does():
+    """`Task.reset_edits` is declared, not inferred: a task that leaves it False promises the
+    plain noisy keyframe (the default `reset_ops` then says []), so its `init` must return the
+    qpos it was given and the same task state whatever the key, and it must not edit the state
+    after its kinematics.
+    A task that edits and does not describe its edits must declare it (reset_ops None)."""
+    qpos_seen = 0
+    for row in tasks.LOCOMOTION + tasks.MANIPULATION:
+        env = make(f"{row.robot}-{row.name}-v0")
+        task, cls = env.task, type(env.task)
+        if not task.reset_edits:
+            assert cls.after_reset is Task.after_reset, row.name
+            states = []
+            for seed in (0, 1):
+                qpos, state = task.init(jax.random.PRNGKey(seed), env._qpos0)
+                np.testing.assert_array_equal(np.asarray(qpos), np.asarray(env._qpos0), row.name)
+                states.append(state)
+                qpos_seen += 1
+            jax.tree.map(np.testing.assert_array_equal, *states)  # nothing drawn from the key
+        if cls.reset_ops is Task.reset_ops:
+            assert task.reset_ops() == ([] if not task.reset_edits else None), row.name
+    assert qpos_seen >= 2 * 15  # most tasks reset to the plain keyframe
 
 
 @pytest.mark.timeout(120)

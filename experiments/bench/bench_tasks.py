@@ -38,9 +38,9 @@ import mujoco
 
 import sirl_jax.envs.tasks as tasks
 from sirl_jax.envs.base import EnvState, VecEnv
-from sirl_jax.envs.humanoid import HumanoidEnv, Task, contact_arrays, set_max_geom_pairs
+from sirl_jax.envs.humanoid import HumanoidEnv, Task, contact_arrays
 from sirl_jax.envs.physics import Physics
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
 
 try:  # the contact slots MJX allocates per env (its collision driver's own count)
     from mujoco.mjx._src.collision_driver import make_condim as mjx_contact_dims
@@ -69,15 +69,15 @@ class BoxTask(BareTask):
     def build(self, spec, variant):
         box = spec.worldbody.add_body(name="object", pos=(0.45, 0.0, 0.1))
         box.add_freejoint(name="free_object")
-        manip.set_inertial(box, 0.3, (1e-3, 1e-3, 1e-3))
+        scene.set_inertial(box, 0.3, (1e-3, 1e-3, 1e-3))
         if self.contacts == "manipulation":
-            manip.use_hand_contacts(spec)
-            manip.add_object_geom(box, type=manip.BOX, size=(0.1,) * 3, density=0.0)
+            scene.use_hand_contacts(spec)
+            scene.add_object_geom(box, type=scene.BOX, size=(0.1,) * 3, density=0.0)
         else:
-            box.add_geom(type=manip.BOX, size=(0.1,) * 3, density=0.0, contype=0,
-                         conaffinity=manip.FLOOR)  # fmt: skip
+            box.add_geom(type=scene.BOX, size=(0.1,) * 3, density=0.0, contype=0,
+                         conaffinity=scene.FLOOR)  # fmt: skip
         if self.max_geom_pairs:
-            set_max_geom_pairs(spec, self.max_geom_pairs)
+            scene.set_max_geom_pairs(spec, self.max_geom_pairs)
 
 
 class Stepper:

@@ -44,8 +44,8 @@ from mujoco.mjx._src.collision_driver import geom_pairs
 
 from sirl_jax.envs.h1 import GEOM_GROUPS
 from sirl_jax.envs.humanoid import HumanoidEnv, contact_arrays
-from sirl_jax.envs.tasks.balance import BalanceTask
-from sirl_jax.envs.tasks.obstacles import HurdleTask, MazeTask, PoleTask
+from sirl_jax.envs.tasks.locomotion.balance import BalanceTask
+from sirl_jax.envs.tasks.locomotion.obstacles import HurdleTask, MazeTask, PoleTask
 
 TASKS = {
     "hurdle": HurdleTask,

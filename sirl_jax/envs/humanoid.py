@@ -42,20 +42,6 @@ FRAME_SKIP = h1.N_SUBSTEPS
 """Physics substeps per control step (dt 0.002 s -> 50 Hz control), as in HumanoidBench."""
 RESET_NOISE = 0.01
 
-# Contact bits. The robot module gives robot colliders contype=2 conaffinity=1 and the floor
-# contype=1 conaffinity=2 (robot-floor only; no self-collision). A task that wants a scene geom to
-# touch only some robot parts adds one of these bits to the conaffinity of those parts and gives
-# the scene geom that bit as contype (and conaffinity 0, so scene geoms never touch each other).
-GROUP_BITS = {
-    "feet": 1 << 2, "legs": 1 << 3, "body": 1 << 4, "arms": 1 << 5, "hands": 1 << 6,
-    "links": 1 << 9,
-}  # fmt: skip
-ALL_GROUPS = ("feet", "legs", "body", "arms")
-"""The robot groups that collide in the "locomotion" contact profile."""
-BIT_OBJECT = 1 << 7
-"""Free task objects that touch each other (balance board and pivot) share this bit."""
-
-
 class Task(abc.ABC):
     """A HumanoidBench task: scene, randomisation, reward, termination, observation extras.
 
@@ -74,6 +60,11 @@ class Task(abc.ABC):
     """Observation = full qpos and qvel (objects included) + extras; False: the robot's only."""
     qvel_obs: bool = True
     """False: the state part of the observation is positions only (kitchen)."""
+    reset_edits: bool = False
+    """`init` or `after_reset` change the noisy keyframe or draw from the key (a goal, an object
+    pose, a throw). A task that declares it and can describe its edits overrides `reset_ops`;
+    one that leaves it False promises the plain noisy keyframe, which the default `reset_ops`
+    describes (tests/test_tasks.py checks every registered task keeps that promise)."""
     reads_contact_slots: bool = False
     """`evaluate` reads MJX's contact slots (not only positions, velocities, sensors and forces),
     so a state from another simulator cannot be scored by it (sim2sim)."""
@@ -115,9 +106,9 @@ class Task(abc.ABC):
     def reset_ops(self) -> list[dict] | None:
         """What `init` and `after_reset` do to the noisy keyframe, as contract reset ops.
 
-        Default: [] for a task that overrides neither, None (not described) otherwise."""
-        plain = type(self).init is Task.init and type(self).after_reset is Task.after_reset
-        return [] if plain else None
+        Default: [] (the plain noisy keyframe) for a task that declares no `reset_edits`, None
+        (not described) for one that does and describes nothing here."""
+        return None if self.reset_edits else []
 
     def reset_state(self, values: dict[str, Any], qpos: jax.Array) -> Any:
         """The task state of an episode whose reset ops drew `values` ({name: array}).
@@ -138,46 +129,6 @@ class Task(abc.ABC):
         return None
 
 
-def set_contact_bits(
-    spec: mujoco.MjSpec, groups: dict[str, tuple[str, ...]], names: tuple[str, ...]
-) -> int:
-    """Adds the bit of each robot group in `names` to its geoms' conaffinity.
-
-    Returns the OR of those bits: the contype a scene geom needs to touch exactly those groups.
-    """
-    bits = 0
-    for name in names:
-        if name not in GROUP_BITS:
-            raise ValueError(f"unknown robot geom group {name!r}; allowed: {sorted(GROUP_BITS)}")
-        for geom_name in groups.get(name, ()):
-            geom = spec.geom(geom_name)
-            if geom is None:
-                raise ValueError(f"robot geom {geom_name!r} of group {name!r} not in the spec")
-            geom.conaffinity = int(geom.conaffinity) | GROUP_BITS[name]
-        bits |= GROUP_BITS[name]
-    return bits
-
-
-def set_max_geom_pairs(spec: mujoco.MjSpec, k: int) -> None:
-    """MJX broad phase: per collision-function group keep only the k candidate pairs whose
-    bounding spheres are closest (plane groups are never pruned). Scenes with many static geoms
-    (maze blocks, poles, stairs) use it so the per-step contact work stays that of a few pairs."""
-    if k < 1:
-        raise ValueError(f"max_geom_pairs must be >= 1, got {k}")
-    spec.add_numeric(name="max_geom_pairs", data=[float(k)])
-
-
-def add_static_geom(
-    spec: mujoco.MjSpec,
-    contype: int,
-    gtype: mujoco.mjtGeom = mujoco.mjtGeom.mjGEOM_BOX,
-    **kwargs,
-) -> mujoco.MjsGeom:
-    """A world geom that touches the robot parts whose bits are in `contype` and nothing else."""
-    geom = spec.worldbody.add_geom(type=gtype, contype=contype, conaffinity=0, **kwargs)
-    return geom
-
-
 def contact_arrays(data: mjx.Data) -> tuple[jax.Array, jax.Array]:
     """(dist [C], geom [C, 2]) of one env's contacts, either impl (`physics.contact_arrays`)."""
     return _physics.contact_arrays(data)
@@ -191,6 +142,11 @@ def geom_mask(model: mujoco.MjModel, ids) -> np.ndarray:
     mask = np.zeros(model.ngeom, bool)
     mask[ids] = True
     return mask
+
+
+def fallen(qpos_z: jax.Array, threshold: float) -> jax.Array:
+    """HumanoidBench's height termination: root z (qpos[2]) < threshold."""
+    return qpos_z < threshold
 
 
 class HumanoidEnv(Env):

@@ -119,7 +119,7 @@ def _termination(task_id: str) -> dict:
 def _humanoid_parts(env, task_id: str) -> dict:
     from sirl_jax.envs.humanoid import FRAME_SKIP
     from sirl_jax.envs.rewards import STAND_HEIGHT
-    from sirl_jax.envs.tasks.basic import WalkTask
+    from sirl_jax.envs.tasks.locomotion.basic import WalkTask
 
     task = env.task
     fields = task.extra_obs_fields()

@@ -15,26 +15,26 @@ from collections.abc import Callable
 from sirl_jax.envs import rewards as R
 from sirl_jax.envs.humanoid import HumanoidEnv, Task
 from sirl_jax.envs.registry import TaskSpec, register
-from sirl_jax.envs.tasks.balance import BalanceTask
-from sirl_jax.envs.tasks.basic import CrawlTask, ReachTask, WalkTask
-from sirl_jax.envs.tasks.basketball import BasketballTask
-from sirl_jax.envs.tasks.bookshelf import BookshelfTask
-from sirl_jax.envs.tasks.cabinet import CabinetTask
-from sirl_jax.envs.tasks.cube import CubeTask
-from sirl_jax.envs.tasks.door import DoorTask
-from sirl_jax.envs.tasks.highbar import HighBarTask
-from sirl_jax.envs.tasks.insert import InsertTask
-from sirl_jax.envs.tasks.kitchen import KitchenTask
-from sirl_jax.envs.tasks.obstacles import HurdleTask, MazeTask, PoleTask
-from sirl_jax.envs.tasks.package import PackageTask
-from sirl_jax.envs.tasks.powerlift import PowerliftTask
-from sirl_jax.envs.tasks.push import PushTask
-from sirl_jax.envs.tasks.room import RoomTask
-from sirl_jax.envs.tasks.sit import SitTask
-from sirl_jax.envs.tasks.spoon import SpoonTask
-from sirl_jax.envs.tasks.terrain import ClimbTask
-from sirl_jax.envs.tasks.truck import TruckTask
-from sirl_jax.envs.tasks.window import WindowTask
+from sirl_jax.envs.tasks.locomotion.balance import BalanceTask
+from sirl_jax.envs.tasks.locomotion.basic import CrawlTask, ReachTask, WalkTask
+from sirl_jax.envs.tasks.locomotion.obstacles import HurdleTask, MazeTask, PoleTask
+from sirl_jax.envs.tasks.locomotion.sit import SitTask
+from sirl_jax.envs.tasks.locomotion.terrain import ClimbTask
+from sirl_jax.envs.tasks.manipulation.basketball import BasketballTask
+from sirl_jax.envs.tasks.manipulation.bookshelf import BookshelfTask
+from sirl_jax.envs.tasks.manipulation.cabinet import CabinetTask
+from sirl_jax.envs.tasks.manipulation.cube import CubeTask
+from sirl_jax.envs.tasks.manipulation.door import DoorTask
+from sirl_jax.envs.tasks.manipulation.highbar import HighBarTask
+from sirl_jax.envs.tasks.manipulation.insert import InsertTask
+from sirl_jax.envs.tasks.manipulation.kitchen import KitchenTask
+from sirl_jax.envs.tasks.manipulation.package import PackageTask
+from sirl_jax.envs.tasks.manipulation.powerlift import PowerliftTask
+from sirl_jax.envs.tasks.manipulation.push import PushTask
+from sirl_jax.envs.tasks.manipulation.room import RoomTask
+from sirl_jax.envs.tasks.manipulation.spoon import SpoonTask
+from sirl_jax.envs.tasks.manipulation.truck import TruckTask
+from sirl_jax.envs.tasks.manipulation.window import WindowTask
 
 VARIANTS = ("h1hand", "h1")
 

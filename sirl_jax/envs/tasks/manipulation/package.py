@@ -8,8 +8,12 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import (
+    ManipulationTask,
+    free_joint_adr,
+    hand_sites,
+)
 
 PACKAGE_KEY_POS = (0.75, 0.0, 0.35)
 PACKAGE_HALF = (0.2, 0.1, 0.35)
@@ -65,7 +69,7 @@ def package_reward(
     return reward, success, terms
 
 
-class PackageTask(Task):
+class PackageTask(ManipulationTask):
     """A 0.4 x 0.2 x 0.7 m, 0.28 kg package at xy ~ U(-2, 2)^2 (z 0.35) and a destination at
     xy ~ U(-2, 2)^2, z 0.35, the task state; terminates on success. Observation: robot
     qpos/qvel (151), destination, package qpos (7) and qvel (6), both hand sites (173).
@@ -75,28 +79,27 @@ class PackageTask(Task):
     observation shows the new one.
     """
 
+    reset_edits = True
+    object_qpos = (*PACKAGE_KEY_POS, 1, 0, 0, 0)
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "package"
     metric_names = (
         "stand_reward", "small_control", "dist_package_destination", "dist_hand_package_right",
         "dist_hand_package_left", "package_height", "success",
     )  # fmt: skip
-    contacts = "manipulation"
     full_state_obs = False
     extra_obs_size = 22
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
         body = spec.worldbody.add_body(name="package_a", pos=PACKAGE_KEY_POS)
         body.add_freejoint(name="free_package")
-        manip.add_mass_geom(body, PACKAGE_DENSITY, type=manip.BOX, size=PACKAGE_HALF,
+        scene.add_mass_geom(body, PACKAGE_DENSITY, type=scene.BOX, size=PACKAGE_HALF,
                             rgba=(0.75, 0.6, 0.4, 1))  # fmt: skip
-        manip.add_object_geom(body, name="package_a_collision", type=manip.BOX,
+        scene.add_object_geom(body, name="package_a_collision", type=scene.BOX,
                               size=PACKAGE_HALF, density=0.0)  # fmt: skip
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, (*PACKAGE_KEY_POS, 1, 0, 0, 0))
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
-        self._qpos, self._dof = manip.free_joint_adr(model, "free_package")
+        self._qpos, self._dof = free_joint_adr(model, "free_package")
 
     def init(self, key, qpos):
         k_package, k_dest = jax.random.split(key)
@@ -106,7 +109,7 @@ class PackageTask(Task):
         return qpos, jnp.append(dest, DESTINATION_Z)
 
     def _hands(self, robot, data):
-        return manip.hand_sites(robot, data)
+        return hand_sites(robot, data)
 
     def evaluate(self, robot, data: mjx.Data, destination):
         package = data.qpos[self._qpos : self._qpos + 3]

@@ -10,8 +10,12 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip, props
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import (
+    ManipulationTask,
+    body_id,
+    free_joint_adr,
+)
 
 OBJECTS = ("chair", "trophy", "headphone", "package_a", "package_b", "snow_globe")
 # Reset: object k's x ~ U(-2.5 + k, -1.5 + k), y ~ +-U(1.2, 3.5) (a random side); z and the
@@ -61,7 +65,7 @@ def room_reward(
     return reward, terms
 
 
-class RoomTask(Task):
+class RoomTask(ManipulationTask):
     """A walled 8 x 8 m room with a table and a shelf (static) and six free objects scattered at
     reset to either side of the robot; reward for gathering them. Terminates when the root drops
     below 0.3 m. Observation: full qpos and qvel (229).
@@ -71,30 +75,28 @@ class RoomTask(Task):
     everything). Object colliders: `props` (cylinders as boxes and capsules, HumanoidBench's
     masses)."""
 
+    reset_edits = True
+    object_qpos = tuple(v for n in OBJECTS for v in (0.0, 0.0, _POSES[n][0], *_POSES[n][1]))
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "room"
     metric_names = ("stand_reward", "small_control", "standing", "upright",
                     "room_object_organized")  # fmt: skip
-    contacts = "manipulation"
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
         for k, (pos, half) in enumerate(_WALLS):  # the robot's body, legs, arms; the objects
-            manip.add_segmented_box(spec.worldbody, f"wall_{k}", pos, half, WALL_SEGMENT,
-                                    contype=manip.FLOOR, conaffinity=0, rgba=(0.7, 0.7, 0.7, 0.4))
-        manip.add_table(spec, (2.7, -0.5, 0.45), (0.5, 0.5, 0.05), top_z=0.45, leg_xy=(0.4, 0.4),
+            scene.add_segmented_box(spec.worldbody, f"wall_{k}", pos, half, WALL_SEGMENT,
+                                    contype=scene.FLOOR, conaffinity=0, rgba=(0.7, 0.7, 0.7, 0.4))
+        scene.add_table(spec, (2.7, -0.5, 0.45), (0.5, 0.5, 0.05), top_z=0.45, leg_xy=(0.4, 0.4),
                         leg_z=0.0, leg_half_z=0.5)  # fmt: skip
-        props.add_shelf(spec, (2.7, 0.5, 0.0))
+        scene.add_shelf(spec, (2.7, 0.5, 0.0))
         for name in OBJECTS:
             body = spec.worldbody.add_body(name=name)
             body.add_freejoint(name=f"free_{name}")
             _OBJECT_BUILDERS[name](body)
-        objects = [v for n in OBJECTS for v in (0.0, 0.0, _POSES[n][0], *_POSES[n][1])]
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, objects)
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
-        self._bodies = jnp.array([manip.body_id(model, n) for n in OBJECTS])
-        self._adr = jnp.array([manip.free_joint_adr(model, f"free_{n}")[0] for n in OBJECTS])
+        self._bodies = jnp.array([body_id(model, n) for n in OBJECTS])
+        self._adr = jnp.array([free_joint_adr(model, f"free_{n}")[0] for n in OBJECTS])
 
     def init(self, key, qpos):
         k_x, k_y, k_side = jax.random.split(key, 3)
@@ -121,18 +123,18 @@ def _chair(body) -> None:
              ((-0.23, 0.19, 0.6375), (0.02, 0.02, 0.2125)),
              ((-0.23, -0.19, 0.6375), (0.02, 0.02, 0.2125)), ((-0.23, 0, 0.77), (0.02, 0.21, 0.08))]
     for pos, half in parts:
-        manip.add_mass_geom(body, props.DENSITY, type=manip.BOX, pos=pos, size=half,
-                            rgba=props.WOOD)  # fmt: skip
+        scene.add_mass_geom(body, scene.DENSITY, type=scene.BOX, pos=pos, size=half,
+                            rgba=scene.WOOD)  # fmt: skip
     seat_and_back = (((-0.23, 0, 0.65), (0.02, 0.21, 0.2)), ((0, 0, 0.2375), (0.21, 0.21, 0.2375)))
     for pos, half in seat_and_back:
-        manip.add_object_geom(body, type=manip.BOX, pos=pos, size=half, density=0.0)
+        scene.add_object_geom(body, type=scene.BOX, pos=pos, size=half, density=0.0)
 
 
 _OBJECT_BUILDERS = {
     "chair": _chair,
-    "trophy": props.trophy,
-    "headphone": lambda body: props.headphone(body, y_offset=-0.05),
-    "package_a": props.box((0.2, 0.1, 0.15)),
-    "package_b": props.box((0.25, 0.2, 0.1)),
-    "snow_globe": props.snow_globe,
+    "trophy": scene.trophy,
+    "headphone": lambda body: scene.headphone(body, y_offset=-0.05),
+    "package_a": scene.box((0.2, 0.1, 0.15)),
+    "package_b": scene.box((0.25, 0.2, 0.1)),
+    "snow_globe": scene.snow_globe,
 }

@@ -7,8 +7,12 @@ import jax.numpy as jnp
 import mujoco
 from mujoco import mjx
 
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import (
+    ManipulationTask,
+    free_joint_adr,
+    with_robot_entries,
+)
 
 TABLE_POS = (0.9, 0.0, 0.45)
 TABLE_TOP = (0.5, 1.0, 0.05)  # half size; top surface at z 0.9
@@ -21,7 +25,7 @@ SUCCESS_DIST = 0.05
 HAND_DIST_COEF, TARGET_DIST_COEF, SUCCESS_BONUS = 0.1, 1.0, 1000.0
 # HumanoidBench's push keyframe: qpos[22] (left wrist yaw) and qpos[47] (right shoulder pitch) are
 # 1.57 (index 47 is the right shoulder pitch, not the right wrist yaw at 51; kept as it is).
-ROBOT_QPOS = manip.with_robot_entries({22: 1.57, 47: 1.57})
+ROBOT_QPOS = with_robot_entries({22: 1.57, 47: 1.57})
 MAX_GEOM_PAIRS = 8
 
 
@@ -46,30 +50,30 @@ def push_reward(
     return reward, success, terms
 
 
-class PushTask(Task):
+class PushTask(ManipulationTask):
     """Box (0.2 m cube, 0.3 kg) on a table; goal xy ~ U([0.7, -0.5], [1.0, 0.5]), z 1; the goal is
     the task state; terminates on success. Observation: robot qpos/qvel (151), left_hand site,
     goal, box position, box linear velocity (163)."""
 
+    reset_edits = True
+    robot_qpos = ROBOT_QPOS
+    object_qpos = (*BOX_POS, 1, 0, 0, 0)
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "push"
     metric_names = ("target_dist", "hand_dist", "reward_success", "success")
-    contacts = "manipulation"
     full_state_obs = False
     extra_obs_size = 12
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
-        manip.add_table(spec, TABLE_POS, TABLE_TOP)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
+        scene.add_table(spec, TABLE_POS, TABLE_TOP)
         box = spec.worldbody.add_body(name="object", pos=BOX_POS)
         box.add_freejoint(name="free_object")
-        manip.set_inertial(box, BOX_MASS, (1e-3, 1e-3, 1e-3))
-        manip.add_object_geom(box, name="object_collision", type=manip.BOX, size=(BOX_HALF,) * 3,
+        scene.set_inertial(box, BOX_MASS, (1e-3, 1e-3, 1e-3))
+        scene.add_object_geom(box, name="object_collision", type=scene.BOX, size=(BOX_HALF,) * 3,
                               density=0.0, rgba=(0.67, 0.73, 0.78, 1))  # fmt: skip
-        manip.set_keyframe(spec, ROBOT_QPOS, (*BOX_POS, 1, 0, 0, 0))
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
-        self._box_qpos, self._box_dof = manip.free_joint_adr(model, "free_object")
+        self._box_qpos, self._box_dof = free_joint_adr(model, "free_object")
 
     def init(self, key, qpos):
         xy = jax.random.uniform(key, (2,), minval=jnp.array(GOAL_LOW), maxval=jnp.array(GOAL_HIGH))

@@ -9,8 +9,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import ManipulationTask, body_id
 
 CABINET_X = 0.9
 CUBE_HALF, CUBE_MASS = 0.05, 1.0
@@ -125,7 +125,7 @@ def cabinet_reward(
     return reward, stage, terms
 
 
-class CabinetTask(Task):
+class CabinetTask(ManipulationTask):
     """A cabinet 0.9 m ahead, four compartments from the bottom: a drawer (slide, damping 80),
     a shelf behind two hinged doors, a shelf behind a sliding door (damping 50), and a shelf
     behind a pull-up door; a 10 cm, 1 kg cube in each. The task state is the current subtask
@@ -136,21 +136,23 @@ class CabinetTask(Task):
     profile). Handle cylinders are capsules of the same length (MJX has no cylinder-box pair);
     masses are HumanoidBench's (its moving panels 5 kg each, the rest density 1000)."""
 
+    # the five hinges and slides closed, then the cubes
+    object_qpos = (0.0,) * 5 + tuple(
+        v for _, z in CUBES for v in (CABINET_X, 0.0, z, 1.0, 0.0, 0.0, 0.0))
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "cabinet"
     metric_names = (
         "stand_reward", "small_control", "success_subtasks", "success", "subtask_complete",
         "door_openness_reward", "drawer_cube_proximity_reward",
     )  # fmt: skip
-    contacts = "manipulation"
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
         x = CABINET_X
         world = spec.worldbody
         for pos, half in (((x, 0, 0.25), (0.3, 0.6, 0.25)), ((1.21, 0, 0.84), (0.009, 0.6, 0.84)),
                           ((x, 0.59, 0.84), (0.3, 0.01, 0.84)),
                           ((x, -0.59, 0.84), (0.3, 0.01, 0.84))):  # fmt: skip
-            manip.add_fixture(spec, world, pos=pos, size=half, rgba=_WOOD)
+            scene.add_fixture(spec, world, pos=pos, size=half, rgba=_WOOD)
         drawer = world.add_body(name="drawer", pos=(x, 0, 0.5))
         drawer.add_joint(name="drawer_slide", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=(-1, 0, 0),
                          range=(0, DRAWER_RANGE), limited=mujoco.mjtLimited.mjLIMITED_TRUE,
@@ -168,7 +170,7 @@ class CabinetTask(Task):
 
         pulling = world.add_body(name="pulling_cabinet", pos=(x, 0, 1.08))
         _shelf(spec, pulling)
-        manip.add_fixture(spec, pulling, pos=(-0.29, -0.29, 0.16), size=(0.01, 0.28, 0.13),
+        scene.add_fixture(spec, pulling, pos=(-0.29, -0.29, 0.16), size=(0.01, 0.28, 0.13),
                           rgba=_WOOD)  # fmt: skip
         door = pulling.add_body(name="pulling_door", pos=(-0.32, 0.29, 0.15))
         door.add_joint(name="pull_door_slide", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=(0, 1, 0),
@@ -178,7 +180,7 @@ class CabinetTask(Task):
 
         pullup = world.add_body(name="pullup_drawer", pos=(x, 0, 1.37))
         _shelf(spec, pullup)
-        manip.add_fixture(spec, pullup, pos=(0.01, 0, 0.3), size=(0.29, 0.6, 0.01), rgba=_WOOD)
+        scene.add_fixture(spec, pullup, pos=(0.01, 0, 0.3), size=(0.29, 0.6, 0.01), rgba=_WOOD)
         door = pullup.add_body(name="pullup_door")
         door.add_joint(name="pullup_door_hinge", pos=(-0.29, 0, 0.29), axis=(0, 1, 0),
                        range=(0, 1.57), limited=mujoco.mjtLimited.mjLIMITED_TRUE, damping=10.0)
@@ -189,18 +191,15 @@ class CabinetTask(Task):
         for name, z in CUBES:
             cube = world.add_body(name=name, pos=(x, 0, z))
             cube.add_freejoint(name=f"free_{name}")
-            manip.add_object_geom(cube, type=manip.BOX, size=(CUBE_HALF,) * 3,
+            scene.add_object_geom(cube, type=scene.BOX, size=(CUBE_HALF,) * 3,
                                   mass=CUBE_MASS, rgba=(0.85, 0.3, 0.2, 1))  # fmt: skip
-        cubes = [v for _, z in CUBES for v in (x, 0.0, z, 1.0, 0.0, 0.0, 0.0)]
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, (0.0,) * 5 + tuple(cubes))
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
         joints = ("drawer_slide", "left_door_hinge", "right_door_hinge", "pull_door_slide",
                   "pullup_door_hinge")  # fmt: skip
         self._q = jnp.array([int(model.jnt_qposadr[model.joint(j).id]) for j in joints])
-        self._drawer_cube = manip.body_id(model, "drawer_cube")
-        self._lateral_cube = manip.body_id(model, "lateral_cabinet_cube")
+        self._drawer_cube = body_id(model, "drawer_cube")
+        self._lateral_cube = body_id(model, "lateral_cabinet_cube")
 
     def init(self, key, qpos):
         return qpos, jnp.ones((), jnp.int32)
@@ -222,20 +221,20 @@ _WOOD = (0.55, 0.4, 0.28, 1)
 
 def _shelf(spec: mujoco.MjSpec, body: mujoco.MjsBody) -> None:
     """A compartment's static floor and back panel."""
-    manip.add_fixture(spec, body, pos=(0, 0, 0.02), size=(0.3, 0.6, 0.01), rgba=_WOOD)
-    manip.add_fixture(spec, body, pos=(0.29, 0, 0.15), size=(0.01, 0.6, 0.14), rgba=_WOOD)
+    scene.add_fixture(spec, body, pos=(0, 0, 0.02), size=(0.3, 0.6, 0.01), rgba=_WOOD)
+    scene.add_fixture(spec, body, pos=(0.29, 0, 0.15), size=(0.01, 0.6, 0.14), rgba=_WOOD)
 
 
 def _moving_part(body: mujoco.MjsBody, boxes: tuple[Box, ...], posts) -> None:
     """Boxes and handle posts (cylinders r 0.02, 0.1 m along x: capsules here, their mass from
     the cylinder) of a drawer or door: they touch the hands and the cubes."""
-    contype = manip.HANDS | manip.FIXTURE  # the hands' conaffinity, and the cubes'
+    contype = scene.HANDS | scene.FIXTURE  # the hands' conaffinity, and the cubes'
     for pos, half, mass in boxes:
         inertia = {"mass": mass} if mass is not None else {"density": 1000.0}
-        body.add_geom(type=manip.BOX, pos=pos, size=half, contype=contype, conaffinity=0,
+        body.add_geom(type=scene.BOX, pos=pos, size=half, contype=contype, conaffinity=0,
                       group=3, rgba=_WOOD, **inertia)  # fmt: skip
     for pos in posts:
-        manip.add_mass_geom(body, 1000.0, type=manip.CYLINDER, pos=pos, size=(0.02, 0.05, 0),
-                            quat=manip.X_AXIS, rgba=(0.1, 0.1, 0.1, 1))  # fmt: skip
-        body.add_geom(type=manip.CAPSULE, pos=pos, size=(0.02, 0.03, 0), quat=manip.X_AXIS,
+        scene.add_mass_geom(body, 1000.0, type=scene.CYLINDER, pos=pos, size=(0.02, 0.05, 0),
+                            quat=scene.X_AXIS, rgba=(0.1, 0.1, 0.1, 1))  # fmt: skip
+        body.add_geom(type=scene.CAPSULE, pos=pos, size=(0.02, 0.03, 0), quat=scene.X_AXIS,
                       contype=contype, conaffinity=0, group=3, density=0.0)  # fmt: skip

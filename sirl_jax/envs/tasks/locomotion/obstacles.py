@@ -20,16 +20,9 @@ import numpy as np
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import (
-    Task,
-    add_static_geom,
-    contact_arrays,
-    geom_mask,
-    set_contact_bits,
-    set_max_geom_pairs,
-)
+from sirl_jax.envs.humanoid import Task, contact_arrays, fallen, geom_mask
 from sirl_jax.envs.overlap import PairQuery
-from sirl_jax.envs.tasks.common import fallen, robot_groups
+from sirl_jax.envs.tasks import scene
 
 WALL_DISCOUNT = 0.1
 """Reward factor while touching a barrier / maze block / pole."""
@@ -46,29 +39,18 @@ def obstacle_colliders(variant: str) -> dict[str, tuple[str, ...]]:
     segments hurdle had 13,663 pairs and ran at 0.35 of the bare robot's rate; palms only and
     2.5-5 m segments give 2,159. The penalty still tests every finger (`PairQuery` over all
     robot geoms); only the physics lets a finger pass into an obstacle."""
-    groups = dict(robot_groups(variant))
+    groups = dict(scene.robot_groups(variant))
     if "hands" in groups:
         groups["hands"] = tuple(n for n in groups["hands"] if "_wrist" in n or "_palm" in n)
     return groups
 
 
-def add_segmented_box(
-    spec: mujoco.MjSpec, contype: int, name: str, pos, size, segment: float, **kwargs
-) -> list[str]:
-    """A static box cut along its longest axis into equal pieces no longer than `segment` (m);
-    returns the pieces' names (`{name}_{i}`). Same solid, bounding spheres MJX can rank."""
-    axis = int(np.argmax(size))
-    n = max(1, int(np.ceil(2 * size[axis] / segment)))
-    half = np.array(size, float)
-    half[axis] /= n
-    names = []
-    for i in range(n):
-        centre = np.array(pos, float)
-        centre[axis] += -size[axis] + (2 * i + 1) * half[axis]
-        names.append(f"{name}_{i}")
-        add_static_geom(spec, contype, pos=centre, size=half, name=names[-1], **kwargs)
-    return names
-
+def _obstacle_box(spec: mujoco.MjSpec, contype: int, name: str, pos, half, segment: float,
+                  rgba) -> list[str]:  # fmt: skip
+    """A penalised static box cut along its longest axis (`scene.add_segmented_box`), drawn by
+    itself (group 0) and touching the robot parts whose bits are in `contype`."""
+    return scene.add_segmented_box(spec.worldbody, name, pos, half, segment, along="longest",
+                                   group=0, contype=contype, conaffinity=0, rgba=rgba)  # fmt: skip
 
 def hurdle_reward(
     head_z: jax.Array, zz: jax.Array, force: jax.Array, v_com: jax.Array, touching: jax.Array
@@ -214,17 +196,10 @@ class HurdleTask(_ContactTask):
     metric_names = ("standing", "upright", "small_control", "move", "wall_collision_discount")
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        bits = set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
+        bits = scene.set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
         for k in range(1, 11):
-            add_segmented_box(
-                spec,
-                bits,
-                f"hurdle_{k}",
-                (7.0 * k, 0, 0.1875),
-                (0.03, 5, 0.1875),
-                2.5,
-                rgba=(0.9, 0.9, 0.9, 1),
-            )
+            _obstacle_box(spec, bits, f"hurdle_{k}", (7.0 * k, 0, 0.1875), (0.03, 5, 0.1875), 2.5,
+                          rgba=(0.9, 0.9, 0.9, 1))  # fmt: skip
         walls = (
             ("left_barrier_collision", (35.0, -4.725, 1.0), (35.5, 0.275, 1.0), 5.0),
             ("right_barrier_collision", (35.0, 4.725, 1.0), (35.5, 0.275, 1.0), 5.0),
@@ -232,11 +207,9 @@ class HurdleTask(_ContactTask):
         )
         names = []
         for name, pos, size, segment in walls:
-            names += add_segmented_box(
-                spec, bits, name, pos, size, segment, rgba=(0.1, 0.1, 0.1, 0.1)
-            )
+            names += _obstacle_box(spec, bits, name, pos, size, segment, rgba=(0.1, 0.1, 0.1, 0.1))
         self._penalised_names = tuple(names)
-        set_max_geom_pairs(spec, 6)
+        scene.set_max_geom_pairs(spec, 6)
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         reward, terms = hurdle_reward(
@@ -280,11 +253,11 @@ class MazeTask(_ContactTask):
     )  # fmt: skip
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        bits = set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
+        bits = scene.set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
         names = []
         for r, c, x, y in maze_block_centres():
             names.append(f"block_collision_{r}{c}")
-            add_static_geom(
+            scene.add_static_geom(
                 spec,
                 bits,
                 pos=(x, y, 0.6),
@@ -293,7 +266,7 @@ class MazeTask(_ContactTask):
                 rgba=(0.4, 0.4, 0.4, 0.3),
             )
         self._penalised_names = tuple(names)
-        set_max_geom_pairs(spec, 6)
+        scene.set_max_geom_pairs(spec, 6)
 
     def init(self, key, qpos):
         return qpos, jnp.zeros((), jnp.int32)
@@ -331,12 +304,12 @@ class PoleTask(_ContactTask):
     metric_names = ("stand_reward", "small_control", "move", "collision_discount")
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        bits = set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
+        bits = scene.set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
         names = []
         for k, (x, y) in enumerate(pole_positions()):
             names.append(f"pole_r{int(x)}_c{k}")
             # HumanoidBench: cylinder r 0.05, z 0..2; MJX has no cylinder-box/mesh collision.
-            add_static_geom(
+            scene.add_static_geom(
                 spec,
                 bits,
                 mujoco.mjtGeom.mjGEOM_CAPSULE,
@@ -351,8 +324,8 @@ class PoleTask(_ContactTask):
             ("pole_wall_right", (20.0, 3.15, 1.0), (20.75, 0.15, 1.0)),
             ("pole_wall_behind", (-0.6, 0.0, 1.0), (0.15, 3.0, 1.0)),
         ):
-            add_segmented_box(spec, bits, name, pos, size, 5.0, rgba=(0.9, 0.9, 0.9, 0.2))
-        set_max_geom_pairs(spec, 6)
+            _obstacle_box(spec, bits, name, pos, size, 5.0, rgba=(0.9, 0.9, 0.9, 0.2))
+        scene.set_max_geom_pairs(spec, 6)
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         reward, terms = pole_reward(

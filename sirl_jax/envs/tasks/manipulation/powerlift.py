@@ -9,9 +9,9 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
-from sirl_jax.envs.tasks.common import fallen
+from sirl_jax.envs.humanoid import fallen
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import ManipulationTask, body_id
 
 DUMBBELL_POS = (0.5, 0.0, 0.2)
 # (radius, half length, y offset): the bar and the two weights, axes along y; density 1000.
@@ -44,7 +44,7 @@ def powerlift_reward(
     return reward, terms
 
 
-class PowerliftTask(Task):
+class PowerliftTask(ManipulationTask):
     """A free dumbbell (bar r 0.029 x 1.3 m, two weights r 0.2 x 0.4 m; 104 kg) on the floor in
     front of the robot; terminates when the root z < 0.2.
 
@@ -54,32 +54,30 @@ class PowerliftTask(Task):
     its orientation is the normalised noise, i.e. random; here it starts level (1, 0, 0, 0).
     """
 
+    object_qpos = (*DUMBBELL_POS, 1, 0, 0, 0)
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "powerlift"
     metric_names = (
         "stand_reward", "small_control", "reward_dumbbell_lifted", "standing", "upright",
     )  # fmt: skip
-    contacts = "manipulation"
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
         body = spec.worldbody.add_body(name="dumbbell", pos=DUMBBELL_POS)
         body.add_freejoint(name="free_dumbbell")
         for radius, half, y in (BAR, *WEIGHTS):
-            manip.add_mass_geom(body, 1000.0, type=manip.CYLINDER, size=(radius, half, 0),
-                                pos=(0, y, 0), quat=manip.Y_AXIS,
+            scene.add_mass_geom(body, 1000.0, type=scene.CYLINDER, size=(radius, half, 0),
+                                pos=(0, y, 0), quat=scene.Y_AXIS,
                                 rgba=(0.5, 0.5, 0.55, 1))  # fmt: skip
         radius, half, _ = BAR
-        manip.add_object_geom(body, name="bar_collision", type=manip.CAPSULE,
-                              size=(radius, half, 0), quat=manip.Y_AXIS, density=0.0)  # fmt: skip
+        scene.add_object_geom(body, name="bar_collision", type=scene.CAPSULE,
+                              size=(radius, half, 0), quat=scene.Y_AXIS, density=0.0)  # fmt: skip
         for k, (radius, half, y) in enumerate(WEIGHTS):
-            manip.add_object_geom(body, hands=False, name=f"weight_{k}_collision",
-                                  type=manip.CYLINDER, size=(radius, half, 0), pos=(0, y, 0),
-                                  quat=manip.Y_AXIS, density=0.0)  # fmt: skip
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, (*DUMBBELL_POS, 1, 0, 0, 0))
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
+            scene.add_object_geom(body, hands=False, name=f"weight_{k}_collision",
+                                  type=scene.CYLINDER, size=(radius, half, 0), pos=(0, y, 0),
+                                  quat=scene.Y_AXIS, density=0.0)  # fmt: skip
 
     def bind(self, model, robot) -> None:
-        self._dumbbell = manip.body_id(model, "dumbbell")
+        self._dumbbell = body_id(model, "dumbbell")
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         reward, terms = powerlift_reward(

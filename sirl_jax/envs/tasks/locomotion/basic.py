@@ -12,8 +12,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, add_static_geom, set_contact_bits, set_max_geom_pairs
-from sirl_jax.envs.tasks.common import robot_groups
+from sirl_jax.envs.humanoid import Task
+from sirl_jax.envs.tasks import scene
 
 
 def walk_reward(
@@ -136,14 +136,14 @@ class CrawlTask(Task):
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         # Tunnel body at x 2.2 in HumanoidBench; its three boxes, in world coordinates.
         # The feet stay on the floor between the walls; every other robot part can touch them.
-        bits = set_contact_bits(spec, robot_groups(variant), ("legs", "body", "arms"))
+        bits = scene.set_contact_bits(spec, scene.robot_groups(variant), ("legs", "body", "arms"))
         for pos, size in (
             ((10.2, -1.35, 0.775), (8.0, 0.2, 0.775)),
             ((10.2, 1.35, 0.775), (8.0, 0.2, 0.775)),
             ((10.2, 0.0, 1.35), (8.0, 1.15, 0.2)),
         ):
-            add_static_geom(spec, bits, pos=pos, size=size, rgba=(0.5, 0.5, 0.5, 0.3))
-        set_max_geom_pairs(spec, 4)
+            scene.add_static_geom(spec, bits, pos=pos, size=size, rgba=(0.5, 0.5, 0.5, 0.3))
+        scene.set_max_geom_pairs(spec, 4)
 
     def bind(self, model, robot) -> None:
         self._pelvis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
@@ -162,6 +162,7 @@ class CrawlTask(Task):
 class ReachTask(Task):
     """Reach a random goal with the left hand; the goal is the task state; no termination."""
 
+    reset_edits = True
     name = "reach"
     metric_names = (
         "hand_dist", "healthy_reward", "motion_penalty", "reward_close", "reward_success",

@@ -8,8 +8,14 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import (
+    ManipulationTask,
+    body_id,
+    euler_to_quat,
+    free_joint_adr,
+    hand_sites,
+)
 
 CUBE_HALF = 0.025
 CUBE_DENSITY = 500.0  # 0.0625 kg each
@@ -69,50 +75,48 @@ def cube_terminated(root_z: jax.Array, cube_z: jax.Array) -> jax.Array:
     return (root_z < ROOT_TERMINATION) | jnp.any(cube_z < CUBE_TERMINATION)
 
 
-class CubeTask(Task):
+class CubeTask(ManipulationTask):
     """Two free 5 cm cubes start in front of the hands with random orientations; the target
     orientation (HumanoidBench writes it into the model's `body_quat`) is the task state and the
     last 4 observation entries. No reset noise (HumanoidBench's noise scale is 0 here)."""
 
+    reset_edits = True
+    object_qpos = tuple(v for pos in CUBE_POS for v in (*pos, 1.0, 0.0, 0.0, 0.0))
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "cube"
     metric_names = (
         "small_control", "stand_reward", "dont_move", "standing", "upright",
         "orientation_alignment_reward", "cube_closeness_reward",
     )  # fmt: skip
-    contacts = "manipulation"
     reset_noise = 0.0
     extra_obs_size = 4
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
         for name, pos in zip(_CUBES, CUBE_POS, strict=True):
             cube = spec.worldbody.add_body(name=name, pos=pos)
             cube.add_freejoint(name=f"free_{name}")
-            manip.add_mass_geom(cube, CUBE_DENSITY, type=manip.BOX, size=(CUBE_HALF,) * 3,
+            scene.add_mass_geom(cube, CUBE_DENSITY, type=scene.BOX, size=(CUBE_HALF,) * 3,
                                 rgba=(0.9, 0.8, 0.2, 1))  # fmt: skip
-            manip.add_object_geom(cube, touch_objects=True, type=manip.BOX,
+            scene.add_object_geom(cube, touch_objects=True, type=scene.BOX,
                                   size=(CUBE_HALF,) * 3, density=0.0)  # fmt: skip
         target = spec.worldbody.add_body(name="target_cube", pos=TARGET_POS)
-        target.add_geom(type=manip.BOX, size=(CUBE_HALF,) * 3, contype=0, conaffinity=0,
+        target.add_geom(type=scene.BOX, size=(CUBE_HALF,) * 3, contype=0, conaffinity=0,
                         group=1, density=0.0, rgba=(1, 1, 1, 0.3))  # fmt: skip
-        objects = [v for pos in CUBE_POS for v in (*pos, 1.0, 0.0, 0.0, 0.0)]
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, objects)
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
-        self._cubes = [manip.body_id(model, n) for n in _CUBES]
-        self._quat_adr = [manip.free_joint_adr(model, f"free_{n}")[0] + 3 for n in _CUBES]
+        self._cubes = [body_id(model, n) for n in _CUBES]
+        self._quat_adr = [free_joint_adr(model, f"free_{n}")[0] + 3 for n in _CUBES]
 
     def init(self, key, qpos):
         k_left, k_right, k_target = jax.random.split(key, 3)
         for k, adr in zip((k_left, k_right), self._quat_adr, strict=True):
             angles = jax.random.uniform(k, (3,), minval=-EULER_RANGE, maxval=EULER_RANGE)
-            qpos = qpos.at[adr : adr + 4].set(manip.euler_to_quat(angles))
+            qpos = qpos.at[adr : adr + 4].set(euler_to_quat(angles))
         target = jax.random.uniform(k_target, (3,), minval=-EULER_RANGE, maxval=EULER_RANGE)
-        return qpos, manip.euler_to_quat(target)
+        return qpos, euler_to_quat(target)
 
     def evaluate(self, robot, data: mjx.Data, target):
-        hands = manip.hand_sites(robot, data)
+        hands = hand_sites(robot, data)
         cubes = data.xpos[jnp.array(self._cubes)]
         reward, terms = cube_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),

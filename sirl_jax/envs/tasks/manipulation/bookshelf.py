@@ -11,8 +11,12 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip, props
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import (
+    ManipulationTask,
+    body_id,
+    hand_sites,
+)
 
 SHELF_POS = (0.95, 0.0, 0.0)
 OBJECTS = ("book_a", "book_b", "book_c", "book_d", "book_e", "trophy", "book_flat", "soda_can",
@@ -86,7 +90,7 @@ def bookshelf_reward(
     return reward, index, terms
 
 
-class BookshelfTask(Task):
+class BookshelfTask(ManipulationTask):
     """Twelve free objects (books, a trophy, a can, chalk, a snow globe, headphones) on a shelf
     0.95 m ahead; five of them, one after another, go to five goals on other boards. Simple: a
     fixed list of objects and goals; hard: five distinct objects and the goal order drawn from
@@ -106,9 +110,11 @@ class BookshelfTask(Task):
         "stand_reward", "small_control", "reward_proximity", "reward_hand_proximity",
         "obj_goal_dist", "success_subtasks", "success",
     )  # fmt: skip
-    contacts = "manipulation"
     reset_noise = 0.0
     extra_obs_size = 1
+    object_qpos = tuple(v for name in OBJECTS for v in (
+        *_POSES[name], *(() if len(_POSES[name]) == 7 else (1.0, 0.0, 0.0, 0.0))))  # fmt: skip
+    max_geom_pairs = MAX_GEOM_PAIRS
 
     def __init__(self, name: str):
         if name not in ("bookshelf_simple", "bookshelf_hard"):
@@ -116,33 +122,28 @@ class BookshelfTask(Task):
                              f"'bookshelf_simple', 'bookshelf_hard'")  # fmt: skip
         self.name = name
         self.randomise = name == "bookshelf_hard"
+        self.reset_edits = self.randomise  # bookshelf_hard draws the order and the goals
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
-        props.add_shelf(spec, SHELF_POS)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
+        scene.add_shelf(spec, SHELF_POS)
         book = _book(_BOOK, (0.0025, 0, 0.115), (0.082, 0.025, 0.115))
         builders = {
             **{f"book_{c}": book for c in "abcde"},
-            "trophy": props.trophy,
+            "trophy": scene.trophy,
             "book_flat": _book(_BOOK_FLAT, (0, -0.022, 0.115), (0.082, 0.028, 0.115)),
             "soda_can": _soda_can,
             "book_thick": _book(_BOOK_THICK, (0.0025, 0.003, 0.115), (0.082, 0.0415, 0.115)),
-            "chalk": lambda b: props.rod(b, (0, 0, 0.01), 0.01, 0.07, quat=_CHALK_AXIS),
-            "snow_globe": props.snow_globe,
-            "headphone": props.headphone,
+            "chalk": lambda b: scene.rod(b, (0, 0, 0.01), 0.01, 0.07, quat=_CHALK_AXIS),
+            "snow_globe": scene.snow_globe,
+            "headphone": scene.headphone,
         }  # fmt: skip
-        qpos = []
         for name in OBJECTS:
             body = spec.worldbody.add_body(name=name)
             body.add_freejoint(name=f"free_{name}")
             builders[name](body)
-            pose = _POSES[name]
-            qpos += [*pose, *(() if len(pose) == 7 else (1.0, 0.0, 0.0, 0.0))]
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, qpos)
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
-        self._bodies = jnp.array([manip.body_id(model, n) for n in OBJECTS])
+        self._bodies = jnp.array([body_id(model, n) for n in OBJECTS])
 
     def init(self, key, qpos):
         order, goals = jnp.array(SIMPLE_ORDER), jnp.array(GOALS, jnp.float32)
@@ -164,7 +165,7 @@ class BookshelfTask(Task):
     def evaluate(self, robot, data: mjx.Data, state):
         index = state["index"]
         obj = data.xpos[self._bodies[state["order"][index]]]
-        hands = manip.hand_sites(robot, data)
+        hands = hand_sites(robot, data)
         reward, new_index, terms = bookshelf_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             obj, state["goals"][index], hands, index,
@@ -185,8 +186,8 @@ def _book(inertial, pos, half):
     mass, inertia, ipos, iquat = inertial
 
     def build(body: mujoco.MjsBody) -> None:
-        manip.set_inertial(body, mass, inertia, ipos, iquat)
-        manip.add_object_geom(body, type=manip.BOX, pos=pos, size=half, density=0.0,
+        scene.set_inertial(body, mass, inertia, ipos, iquat)
+        scene.add_object_geom(body, type=scene.BOX, pos=pos, size=half, density=0.0,
                               rgba=(0.5, 0.3, 0.25, 1))  # fmt: skip
 
     return build
@@ -194,8 +195,8 @@ def _book(inertial, pos, half):
 
 def _soda_can(body: mujoco.MjsBody) -> None:
     """1.57 kg: a cylinder r 0.05 x 0.2 m standing on its base; collider a box of its area."""
-    manip.add_mass_geom(body, props.DENSITY, type=manip.CYLINDER, pos=(0, 0, 0.1),
+    scene.add_mass_geom(body, scene.DENSITY, type=scene.CYLINDER, pos=(0, 0, 0.1),
                         size=(0.05, 0.1, 0), rgba=(0.8, 0.1, 0.1, 1))  # fmt: skip
     side = 0.05 * math.sqrt(math.pi) / 2
-    manip.add_object_geom(body, type=manip.BOX, pos=(0, 0, 0.1), size=(side, side, 0.1),
+    scene.add_object_geom(body, type=scene.BOX, pos=(0, 0, 0.1), size=(side, side, 0.1),
                           density=0.0)  # fmt: skip

@@ -9,15 +9,15 @@ import numpy as np
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import (
-    Task,
-    contact_arrays,
-    geom_mask,
-    set_contact_bits,
-    set_max_geom_pairs,
+from sirl_jax.envs.humanoid import contact_arrays, fallen, geom_mask
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import (
+    ManipulationTask,
+    body_id,
+    free_joint_adr,
+    geom_ids,
+    hand_sites,
 )
-from sirl_jax.envs.tasks import manip
-from sirl_jax.envs.tasks.common import fallen, robot_groups
 
 BALL_RADIUS = 0.1193
 BALL_DENSITY = 35.0  # 0.249 kg
@@ -106,7 +106,7 @@ def _yaw_quat(yaw: float) -> tuple[float, float, float, float]:
     return (float(np.cos(yaw / 2)), 0.0, 0.0, float(np.sin(yaw / 2)))
 
 
-class BasketballTask(Task):
+class BasketballTask(ManipulationTask):
     """A 0.249 kg ball is thrown at the robot from a random angle in (-1.45, 1.45) rad; the stage
     (0 catch, 1 throw) is the task state. Terminates when the ball z < 0.5, the root z < 0.5 or
     the ball is within 0.05 of the hoop centre.
@@ -115,39 +115,38 @@ class BasketballTask(Task):
     the whole robot, and any ball contact ends the catch stage), the hoop and the floor.
     """
 
+    reset_edits = True
+    object_qpos = (*BALL_KEY_POS, 1, 0, 0, 0)
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "basketball"
     reads_contact_slots = True  # the ball-hand touch
     metric_names = (
         "reward_hand_proximity", "reward_ball_success", "stand_reward", "small_control",
         "success_subtasks", "success",
     )  # fmt: skip
-    contacts = "manipulation"
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
-        body_bits = set_contact_bits(spec, robot_groups(variant), ("body", "arms"))
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
+        body_bits = scene.set_contact_bits(spec, scene.robot_groups(variant), ("body", "arms"))
         hoop = spec.worldbody.add_body(name="baskethoop", pos=HOOP_BODY)
         for k, (pos, size, yaw) in enumerate(HOOP_BOXES):
-            manip.add_fixture(spec, hoop, name=f"hoop_{k}_collision", pos=pos, size=size,
+            scene.add_fixture(spec, hoop, name=f"hoop_{k}_collision", pos=pos, size=size,
                               quat=_yaw_quat(yaw), rgba=(0.9, 0.4, 0.1, 0.6))  # fmt: skip
         pos, size = HOOP_POST
-        manip.add_fixture(spec, hoop, name="hoop_post_collision", type=manip.CYLINDER, pos=pos,
+        scene.add_fixture(spec, hoop, name="hoop_post_collision", type=scene.CYLINDER, pos=pos,
                           size=(*size, 0), rgba=(0.3, 0.3, 0.3, 1))  # fmt: skip
         spec.worldbody.add_site(name="hoop_center", pos=HOOP_CENTER)
         ball = spec.worldbody.add_body(name="basketball", pos=BALL_KEY_POS)
         ball.add_freejoint(name="free_basketball")
-        manip.add_mass_geom(ball, BALL_DENSITY, type=manip.SPHERE, size=(BALL_RADIUS, 0, 0),
+        scene.add_mass_geom(ball, BALL_DENSITY, type=scene.SPHERE, size=(BALL_RADIUS, 0, 0),
                             rgba=(0.9, 0.45, 0.1, 1))  # fmt: skip
-        geom = manip.add_object_geom(ball, name="basketball_collision", type=manip.SPHERE,
+        geom = scene.add_object_geom(ball, name="basketball_collision", type=scene.SPHERE,
                                      size=(BALL_RADIUS, 0, 0), density=0.0)  # fmt: skip
         geom.contype |= body_bits
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, (*BALL_KEY_POS, 1, 0, 0, 0))
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
-        self._ball = manip.body_id(model, "basketball")
-        self._qpos, self._dof = manip.free_joint_adr(model, "free_basketball")
-        ball_geom = manip.geom_ids(model, ["basketball_collision"])
+        self._ball = body_id(model, "basketball")
+        self._qpos, self._dof = free_joint_adr(model, "free_basketball")
+        ball_geom = geom_ids(model, ["basketball_collision"])
         self._ball_mask = jnp.asarray(geom_mask(model, ball_geom))
         self._hoop = robot.site_ids["hoop_center"]
 
@@ -164,7 +163,7 @@ class BasketballTask(Task):
         return data.replace(qpos=qpos, qvel=qvel), task_state
 
     def evaluate(self, robot, data: mjx.Data, task_state):
-        hands = manip.hand_sites(robot, data)
+        hands = hand_sites(robot, data)
         ball = data.xpos[self._ball]
         hoop = data.site_xpos[self._hoop]
         touched = R.any_contact(*contact_arrays(data), self._ball_mask)

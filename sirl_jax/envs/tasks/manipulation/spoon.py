@@ -10,8 +10,13 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import (
+    ManipulationTask,
+    body_id,
+    geom_ids,
+    hand_sites,
+)
 
 TABLE_POS = (1.0, 0.0, 0.45)
 TABLE_TOP = (0.5, 0.5, 0.05)  # half size at z + 0.4: top surface at z 0.9
@@ -81,7 +86,7 @@ def spoon_reward(
     return reward, terms
 
 
-class SpoonTask(Task):
+class SpoonTask(ManipulationTask):
     """A free spoon on a table next to a fixed cup; stir along a target that circles inside the
     cup (radius 0.06 m, one turn per 40 control steps). The task state is the number of steps
     scored so far; the reward of step k uses the target of phase k, and the observation after it
@@ -94,43 +99,41 @@ class SpoonTask(Task):
     is a capsule of the same length, the plate a box of the same area and thickness; the mass and
     inertia come from HumanoidBench's cylinders (non-colliding geoms)."""
 
+    object_qpos = (*SPOON_POS, 1, 0, 0, 0)
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "spoon"
     metric_names = (
         "stand_reward", "small_control", "hand_tool_proximity_reward", "reward_spoon_in_cup",
         "spoon_spinning_reward",
     )  # fmt: skip
-    contacts = "manipulation"
     extra_obs_size = 3
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
-        manip.add_table(spec, TABLE_POS, TABLE_TOP, leg_xy=(0.4, 0.4))
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
+        scene.add_table(spec, TABLE_POS, TABLE_TOP, leg_xy=(0.4, 0.4))
         cup = spec.worldbody.add_body(name="cup", pos=CUP_POS)
         for pos, half in _CUP_BOXES:
-            manip.add_fixture(spec, cup, pos=pos, size=half, rgba=(0.6, 0.6, 0.62, 1))
-        manip.add_fixture(spec, cup, type=manip.CAPSULE, pos=(0, 0.19, 0.08), size=(0.01, 0.05, 0),
+            scene.add_fixture(spec, cup, pos=pos, size=half, rgba=(0.6, 0.6, 0.62, 1))
+        scene.add_fixture(spec, cup, type=scene.CAPSULE, pos=(0, 0.19, 0.08), size=(0.01, 0.05, 0),
                           rgba=(0.6, 0.6, 0.62, 1))  # fmt: skip
         spoon = spec.worldbody.add_body(name="spoon", pos=SPOON_POS)
         spoon.add_freejoint(name="free_spoon")
         radius, half = HANDLE
         p_radius, p_half, p_x = PLATE
         steel = (0.75, 0.75, 0.78, 1)
-        manip.add_mass_geom(spoon, DENSITY, name="spoon_handle", type=manip.CYLINDER,
-                            size=(radius, half, 0), pos=(0, 0, 0.0035), quat=manip.X_AXIS,
+        scene.add_mass_geom(spoon, DENSITY, name="spoon_handle", type=scene.CYLINDER,
+                            size=(radius, half, 0), pos=(0, 0, 0.0035), quat=scene.X_AXIS,
                             rgba=steel)  # fmt: skip
-        manip.add_mass_geom(spoon, DENSITY, name="spoon_plate", type=manip.CYLINDER,
+        scene.add_mass_geom(spoon, DENSITY, name="spoon_plate", type=scene.CYLINDER,
                             size=(p_radius, p_half, 0), pos=(p_x, 0, 0.0035), rgba=steel)
-        manip.add_object_geom(spoon, type=manip.CAPSULE, size=(radius, half - radius, 0),
-                              pos=(0, 0, 0.0035), quat=manip.X_AXIS, density=0.0)  # fmt: skip
+        scene.add_object_geom(spoon, type=scene.CAPSULE, size=(radius, half - radius, 0),
+                              pos=(0, 0, 0.0035), quat=scene.X_AXIS, density=0.0)  # fmt: skip
         side = p_radius * math.sqrt(math.pi) / 2  # a square of the disc's area
-        manip.add_object_geom(spoon, type=manip.BOX, size=(side, side, p_half),
+        scene.add_object_geom(spoon, type=scene.BOX, size=(side, side, p_half),
                               pos=(p_x, 0, 0.0035), density=0.0)  # fmt: skip
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, (*SPOON_POS, 1, 0, 0, 0))
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
-        self._handle, self._plate = manip.geom_ids(model, ("spoon_handle", "spoon_plate"))
-        self._cup = manip.body_id(model, "cup")
+        self._handle, self._plate = geom_ids(model, ("spoon_handle", "spoon_plate"))
+        self._cup = body_id(model, "cup")
 
     def init(self, key, qpos):
         return qpos, jnp.zeros((), jnp.int32)
@@ -139,7 +142,7 @@ class SpoonTask(Task):
         return []  # init only starts the task state; the key is unused
 
     def evaluate(self, robot, data: mjx.Data, step):
-        hands = manip.hand_sites(robot, data)
+        hands = hand_sites(robot, data)
         reward, terms = spoon_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             hands, data.geom_xpos[self._handle], data.geom_xpos[self._plate],

@@ -10,8 +10,12 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import (
+    ManipulationTask,
+    body_id,
+    hand_sites,
+)
 
 DOOR_POS = (0.8, 0.0, 0.0)
 DOOR_HALF = (0.07, 0.48, 0.99)  # at (0, 0, 1) in the door body; density 600: 159.7 kg
@@ -40,7 +44,7 @@ HATCH_OPEN, HATCH_MARGIN = (0.75, 2.0), 0.75
 HAND_BOUND, HAND_MARGIN = 0.25, 1.0
 ROOT_TERMINATION = 0.58
 MAX_GEOM_PAIRS = 12
-_AXES = {"x": manip.X_AXIS, "y": manip.Y_AXIS}
+_AXES = {"x": scene.X_AXIS, "y": scene.Y_AXIS}
 
 
 def door_reward(
@@ -88,7 +92,7 @@ def door_reward(
     return reward, terms
 
 
-class DoorTask(Task):
+class DoorTask(ManipulationTask):
     """A 160 kg door 0.8 m ahead, on a sprung hinge (stiffness 50, opening toward the robot, 0 to
     1.4 rad), with a sprung handle (the hatch, 0 to 2 rad); the robot starts in a walled corridor.
     Terminates when the root drops below 0.58 m. Observation: full qpos and qvel (155).
@@ -100,49 +104,47 @@ class DoorTask(Task):
     hubs (r 0.05 cylinders as long as wide) are spheres of their radius; the mass and inertia
     come from HumanoidBench's cylinders (non-colliding geoms)."""
 
+    object_qpos = (0.0, 0.0)  # the door and hatch hinges
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "door"
     metric_names = (
         "stand_reward", "small_control", "door_openness_reward", "door_hatch_openness_reward",
         "hand_hatch_proximity_reward", "passage_reward",
     )  # fmt: skip
-    contacts = "manipulation"
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
-        touch_all = manip.FLOOR | manip.HANDS  # robot colliders' conaffinity 1, hands' HANDS
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
+        touch_all = scene.FLOOR | scene.HANDS  # robot colliders' conaffinity 1, hands' HANDS
         door = spec.worldbody.add_body(name="door", pos=DOOR_POS)
         door.add_joint(name="door_hinge", pos=HINGE_POS, axis=(0, 0, 1), range=HINGE_RANGE,
                        limited=mujoco.mjtLimited.mjLIMITED_TRUE, stiffness=HINGE_STIFFNESS)
-        manip.add_mass_geom(door, DOOR_DENSITY, type=manip.BOX, pos=(0, 0, 1), size=DOOR_HALF,
+        scene.add_mass_geom(door, DOOR_DENSITY, type=scene.BOX, pos=(0, 0, 1), size=DOOR_HALF,
                             rgba=(0.8, 0.8, 0.83, 1))  # fmt: skip
-        door.add_geom(name="door_collision", type=manip.BOX, pos=(0, 0, 1), size=DOOR_HALF,
+        door.add_geom(name="door_collision", type=scene.BOX, pos=(0, 0, 1), size=DOOR_HALF,
                       contype=touch_all, conaffinity=0, group=3, density=0.0)  # fmt: skip
         hatch = door.add_body(name="door_hatch", pos=HATCH_POS, gravcomp=1.0)
         hatch.add_joint(name="door_hatch_hinge", axis=(1, 0, 0), range=HATCH_RANGE,
                         limited=mujoco.mjtLimited.mjLIMITED_TRUE, stiffness=HATCH_STIFFNESS)
         for pos, radius, half, axis in _HATCH:
-            manip.add_mass_geom(hatch, HANDLE_DENSITY, type=manip.CYLINDER, pos=pos,
+            scene.add_mass_geom(hatch, HANDLE_DENSITY, type=scene.CYLINDER, pos=pos,
                                 size=(radius, half, 0), quat=_AXES[axis],
                                 rgba=(0.6, 0.6, 0.62, 1))  # fmt: skip
-            gtype, size = manip.CAPSULE, (radius, half - radius, 0)
+            gtype, size = scene.CAPSULE, (radius, half - radius, 0)
             if half <= radius:  # the hubs: as long as wide
-                gtype, size = manip.SPHERE, (radius, 0, 0)
+                gtype, size = scene.SPHERE, (radius, 0, 0)
             hatch.add_geom(type=gtype, pos=pos, size=size, quat=_AXES[axis], contype=touch_all,
                            conaffinity=0, group=3, density=0.0)  # fmt: skip
         walls = spec.worldbody.add_body(name="door_walls", pos=DOOR_POS)
         for k, (pos, half) in enumerate(_WALLS):  # the robot's body, legs and arms only
-            manip.add_segmented_box(walls, f"wall_{k}", pos, half, WALL_SEGMENT,
-                                    contype=manip.FLOOR, conaffinity=0, rgba=(0.8, 0.8, 0.83, 0.3))
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, (0.0, 0.0))
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
+            scene.add_segmented_box(walls, f"wall_{k}", pos, half, WALL_SEGMENT,
+                                    contype=scene.FLOOR, conaffinity=0, rgba=(0.8, 0.8, 0.83, 0.3))
 
     def bind(self, model, robot) -> None:
         self._door_q = int(model.jnt_qposadr[model.joint("door_hinge").id])
         self._hatch_q = int(model.jnt_qposadr[model.joint("door_hatch_hinge").id])
-        self._hatch = manip.body_id(model, "door_hatch")
+        self._hatch = body_id(model, "door_hatch")
 
     def evaluate(self, robot, data: mjx.Data, task_state):
-        hands = manip.hand_sites(robot, data)
+        hands = hand_sites(robot, data)
         reward, terms = door_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             data.qpos[self._door_q], data.qpos[self._hatch_q], data.xpos[self._hatch], hands,

@@ -11,15 +11,9 @@ import numpy as np
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import (
-    BIT_OBJECT,
-    Task,
-    contact_arrays,
-    geom_mask,
-    set_contact_bits,
-)
+from sirl_jax.envs.humanoid import Task, contact_arrays, fallen, geom_mask
 from sirl_jax.envs.overlap import PairQuery, below_floor
-from sirl_jax.envs.tasks.common import fallen, robot_groups
+from sirl_jax.envs.tasks import scene
 
 BALANCE_ROOT = (-0.1, 0.0, 1.38)
 BOARD_Z, BOARD_HALF = 0.37, (0.15, 0.55, 0.03)
@@ -70,20 +64,20 @@ class BalanceTask(Task):
         self.contact_rule = contact_rule
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        groups = robot_groups(variant)
+        groups = scene.robot_groups(variant)
         # The board carries the feet; the sphere under it can only be reached by the feet and
         # legs before the root drops below 0.8 m (itself a termination).
-        standing_on = set_contact_bits(spec, groups, ("feet",))
-        everything = set_contact_bits(spec, groups, ("feet", "legs"))
+        standing_on = scene.set_contact_bits(spec, groups, ("feet",))
+        everything = scene.set_contact_bits(spec, groups, ("feet", "legs"))
         board = spec.worldbody.add_body(name="stand_board", pos=(0, 0, BOARD_Z))
         board.add_freejoint(name="free_stand_board")
-        # Board: robot feet/legs, the floor (contype 1) and the pivot (BIT_OBJECT).
+        # Board: robot feet/legs, the floor (contype 1) and the pivot (scene.OBJECT).
         board.add_geom(
             name="stand_board_collision",
             type=mujoco.mjtGeom.mjGEOM_BOX,
             size=BOARD_HALF,
             contype=standing_on,
-            conaffinity=1 | BIT_OBJECT,
+            conaffinity=1 | scene.OBJECT,
             rgba=(0.7, 0.7, 0.7, 1),
         )
         pivot = spec.worldbody.add_body(name="rolling_pivot", pos=(0, 0, PIVOT_Z))
@@ -93,7 +87,7 @@ class BalanceTask(Task):
             name="pivot_sphere_collision",
             type=mujoco.mjtGeom.mjGEOM_SPHERE,
             size=(PIVOT_RADIUS, 0, 0),
-            contype=everything | BIT_OBJECT,
+            contype=everything | scene.OBJECT,
             conaffinity=1,
             rgba=(0.3, 0.3, 0.3, 1),
         )

@@ -11,8 +11,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import ManipulationTask, hand_sites
 
 TABLE_POS = (0.9, 0.0, 0.45)
 TABLE_TOP = (0.5, 0.5, 0.05)  # half size at z + 0.45: top surface at z 0.95
@@ -102,17 +102,19 @@ def insert_terminated(root_z: jax.Array, sites_z: jax.Array) -> jax.Array:
     return (root_z < ROOT_TERMINATION) | jnp.any(sites_z < OBJECT_TERMINATION)
 
 
-class InsertTask(Task):
+class InsertTask(ManipulationTask):
     """Two free pegs (square cups) and a free block on a table; lift the pegs to 1.1 m and put the
     block's ends (sites block_peg_a/b) into them. Every collider is a box, as in HumanoidBench;
     the pegs and the block touch each other (and the hands, table and floor). Observation: full
     qpos and qvel (190)."""
 
+    object_qpos = tuple(v for p in (PEG_POS["a"], PEG_POS["b"], BLOCK_POS)
+                        for v in (*p, 1, 0, 0, 0))  # fmt: skip
+    max_geom_pairs = MAX_GEOM_PAIRS
     metric_names = (
         "small_control", "stand_reward", "cube_target_reward", "hand_tool_proximity_reward",
         "peg_height_reward",
     )  # fmt: skip
-    contacts = "manipulation"
 
     def __init__(self, name: str):
         if name not in SIZES:
@@ -120,9 +122,8 @@ class InsertTask(Task):
         self.name = name
         self.size = SIZES[name]
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
-        manip.add_table(spec, TABLE_POS, TABLE_TOP, top_z=0.45, leg_xy=(0.4, 0.4), leg_z=0.0,
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
+        scene.add_table(spec, TABLE_POS, TABLE_TOP, top_z=0.45, leg_xy=(0.4, 0.4), leg_z=0.0,
                         leg_half_z=0.5)  # fmt: skip
         shades = {"a": (0.2, 0.2, 0.2, 1), "b": (0.8, 0.8, 0.8, 1)}
         for ch in _PEGS:
@@ -130,19 +131,16 @@ class InsertTask(Task):
             peg.add_freejoint(name=f"free_peg_{ch}")
             peg.add_site(name=f"peg_{ch}", pos=(0, 0, self.size.site_z))
             for pos, half in self.size.peg_boxes():
-                manip.add_object_geom(peg, touch_objects=True, type=manip.BOX, pos=pos, size=half,
+                scene.add_object_geom(peg, touch_objects=True, type=scene.BOX, pos=pos, size=half,
                                       density=DENSITY, rgba=shades[ch])  # fmt: skip
         s = self.size.block
         block = spec.worldbody.add_body(name="block_a", pos=BLOCK_POS)
         block.add_freejoint(name="free_block_a")
         block.add_site(name="block_peg_b", pos=(0, -0.15, s))
         block.add_site(name="block_peg_a", pos=(0, 0.15, s))
-        manip.add_object_geom(block, touch_objects=True, type=manip.BOX, pos=(0, 0, s),
+        scene.add_object_geom(block, touch_objects=True, type=scene.BOX, pos=(0, 0, s),
                               size=(s, 0.15, s), density=DENSITY,
                               rgba=(0.65, 0.65, 0.65, 1))  # fmt: skip
-        objects = [v for p in (PEG_POS["a"], PEG_POS["b"], BLOCK_POS) for v in (*p, 1, 0, 0, 0)]
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, objects)
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
         site = {model.site(i).name: i for i in range(model.nsite)}
@@ -151,7 +149,7 @@ class InsertTask(Task):
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         pegs, ends = data.site_xpos[self._pegs], data.site_xpos[self._ends]
-        hands = manip.hand_sites(robot, data)
+        hands = hand_sites(robot, data)
         reward, terms = insert_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             ends, pegs, hands,

@@ -15,8 +15,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, add_static_geom, set_contact_bits, set_max_geom_pairs
-from sirl_jax.envs.tasks.common import robot_groups
+from sirl_jax.envs.humanoid import Task
+from sirl_jax.envs.tasks import scene
 
 
 def climb_reward(
@@ -89,14 +89,15 @@ class ClimbTask(Task):
         self.name = name
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        groups = robot_groups(variant)
-        low = set_contact_bits(spec, groups, ("feet",))
-        body = set_contact_bits(spec, groups, ("body",))
+        groups = scene.robot_groups(variant)
+        low = scene.set_contact_bits(spec, groups, ("feet",))
+        body = scene.set_contact_bits(spec, groups, ("body",))
         rgba = (0.8, 0.8, 0.83, 1)
         if self.name == "stair":
             for centre in STAIR_CENTRES:
                 for x, h in stair_treads(centre):
-                    add_static_geom(spec, low, pos=(x, 0, h / 2), size=(0.3, 5.0, h / 2), rgba=rgba)
+                    scene.add_static_geom(spec, low, pos=(x, 0, h / 2), size=(0.3, 5.0, h / 2),
+                                          rgba=rgba)
             walls = (
                 ((13.5, -5.05, 2.0), (15.5, 0.1, 2.0)),
                 ((13.5, 5.05, 2.0), (15.5, 0.1, 2.0)),
@@ -105,17 +106,17 @@ class ClimbTask(Task):
         else:
             for k in range(9):
                 for pos, size, quat in slide_boxes(0.3 + 10.0 * k):
-                    add_static_geom(spec, low, pos=pos, size=size, quat=quat, rgba=rgba)
+                    scene.add_static_geom(spec, low, pos=pos, size=size, quat=quat, rgba=rgba)
             walls = (
                 ((48.85, -5.15, 4.0), (53.0, 0.15, 4.0)),
                 ((48.85, 5.15, 4.0), (53.0, 0.15, 4.0)),
                 ((-4.0, 0.0, 4.0), (0.15, 5.15, 4.0)),
             )
         for pos, size in walls:
-            add_static_geom(spec, body, pos=pos, size=size, rgba=(0.5, 0.5, 0.5, 0.2))
+            scene.add_static_geom(spec, body, pos=pos, size=size, rgba=(0.5, 0.5, 0.5, 0.2))
         # Per collision function: the 3 wall pairs (ranked first: long walls have huge bounding
         # spheres), then the treads/ramps nearest the two feet.
-        set_max_geom_pairs(spec, 8)
+        scene.set_max_geom_pairs(spec, 8)
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         reward, terms = climb_reward(

@@ -8,9 +8,14 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
 from sirl_jax.envs.overlap import PairQuery
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import (
+    ManipulationTask,
+    body_id,
+    geom_ids,
+    hand_sites,
+)
 
 WINDOW_POS = (1.0, 0.0, 0.0)
 TOOL_POS = (0.45, 0.0, 1.085)  # HumanoidBench's keyframe (the body's own pos is z 1.2)
@@ -91,7 +96,7 @@ def window_reward(
     return reward, terms
 
 
-class WindowTask(Task):
+class WindowTask(ManipulationTask):
     """A window frame (static) 1 m in front of the robot and a free 1 m wiping tool with a wiper
     head on a ball joint; the task state is the head site's position after reset. Terminates when
     the root or the tool drops below 0.58 m. Observation: full qpos and qvel (171).
@@ -104,33 +109,34 @@ class WindowTask(Task):
     pane, sphere and wiper are as in HumanoidBench. The tool touches the hands, the floor and the
     window; the robot's body passes through the window."""
 
+    reset_edits = True
+    object_qpos = (*TOOL_POS, 1, 0, 0, 0, 1, 0, 0, 0)  # the tool's free joint, the wiper's ball
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "window"
     metric_names = (
         "stand_reward", "small_control", "moving_wipe_reward", "hand_tool_proximity_reward",
         "window_contact_reward", "window_contact_filter", "window_contact_total_reward",
     )  # fmt: skip
-    contacts = "manipulation"
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
         window = spec.worldbody.add_body(name="window", pos=WINDOW_POS)
         for pos, half in _FRAME:
-            manip.add_fixture(spec, window, pos=pos, size=half, rgba=(0.55, 0.57, 0.6, 1))
-        manip.add_fixture(spec, window, name="window_pane_collision", pos=PANE[0], size=PANE[1],
+            scene.add_fixture(spec, window, pos=pos, size=half, rgba=(0.55, 0.57, 0.6, 1))
+        scene.add_fixture(spec, window, name="window_pane_collision", pos=PANE[0], size=PANE[1],
                           rgba=(0.2, 0.95, 0.95, 0.3))  # fmt: skip
         tool = spec.worldbody.add_body(name="window_wiping_tool", pos=TOOL_POS)
         tool.add_freejoint(name="free_window_wiping_tool")
         radius, half = TOOL_ROD
-        manip.add_mass_geom(tool, DENSITY, type=manip.CYLINDER, size=(radius, half, 0),
-                            pos=(0, 0, 0.02), quat=manip.Y_AXIS, rgba=(0.75, 0.75, 0.78, 1))
-        manip.add_object_geom(tool, type=manip.CAPSULE, size=(radius, half - radius, 0),
-                              pos=(0, 0, 0.02), quat=manip.Y_AXIS, density=0.0)  # fmt: skip
+        scene.add_mass_geom(tool, DENSITY, type=scene.CYLINDER, size=(radius, half, 0),
+                            pos=(0, 0, 0.02), quat=scene.Y_AXIS, rgba=(0.75, 0.75, 0.78, 1))
+        scene.add_object_geom(tool, type=scene.CAPSULE, size=(radius, half - radius, 0),
+                              pos=(0, 0, 0.02), quat=scene.Y_AXIS, density=0.0)  # fmt: skip
         wiper = tool.add_body(name="window_wiper_sphere", pos=WIPER_POS)
         wiper.add_joint(type=mujoco.mjtJoint.mjJNT_BALL, limited=mujoco.mjtLimited.mjLIMITED_TRUE,
                         range=(0.0, WIPER_LIMIT))  # fmt: skip
-        manip.add_object_geom(wiper, type=manip.SPHERE, size=(WIPER_SPHERE, 0, 0),
+        scene.add_object_geom(wiper, type=scene.SPHERE, size=(WIPER_SPHERE, 0, 0),
                               density=DENSITY, rgba=(0.75, 0.75, 0.78, 1))  # fmt: skip
-        manip.add_object_geom(wiper, name="window_wipe_collision", type=manip.BOX,
+        scene.add_object_geom(wiper, name="window_wipe_collision", type=scene.BOX,
                               size=WIPER_BOX, pos=(0, 0.03, 0.02), density=DENSITY,
                               rgba=(0.9, 0.9, 0.9, 1))  # fmt: skip
         for name, pos in zip(_WIPE_SITES, _WIPE_SITE_POS, strict=True):
@@ -138,16 +144,14 @@ class WindowTask(Task):
         spec.add_sensor(name="window_wiping_tool_subtreelinvel",
                         type=mujoco.mjtSensor.mjSENS_SUBTREELINVEL,
                         objtype=mujoco.mjtObj.mjOBJ_BODY, objname="window_wiping_tool")
-        manip.set_keyframe(spec, manip.STAND_ROBOT_QPOS, (*TOOL_POS, 1, 0, 0, 0, 1, 0, 0, 0))
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
-        self._tool = manip.body_id(model, "window_wiping_tool")
+        self._tool = body_id(model, "window_wiping_tool")
         site = {model.site(i).name: i for i in range(model.nsite)}
         self._wipe_sites = jnp.array([site[n] for n in _WIPE_SITES])
         sensor = model.sensor("window_wiping_tool_subtreelinvel").id
         self._tool_vel_adr = int(model.sensor_adr[sensor])
-        wipe, pane = manip.geom_ids(model, ("window_wipe_collision", "window_pane_collision"))
+        wipe, pane = geom_ids(model, ("window_wipe_collision", "window_pane_collision"))
         self._touch = PairQuery(model, [wipe], [pane])
 
     def init(self, key, qpos):
@@ -157,7 +161,7 @@ class WindowTask(Task):
         return data, robot.site_pos(data, "head")
 
     def evaluate(self, robot, data: mjx.Data, head0):
-        hands = manip.hand_sites(robot, data)
+        hands = hand_sites(robot, data)
         tool = data.xpos[self._tool]
         reward, terms = window_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),

@@ -10,8 +10,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import ManipulationTask
 
 BAR_POS = (0.31, 0.0, 2.8)  # the holding bar's axis (body at x 0.5, geom at x -0.19), along y
 BAR_RADIUS, BAR_HALF = 0.02, 1.2
@@ -52,7 +52,7 @@ def highbar_reward(
     return upright * feet * small_control, terms
 
 
-class HighBarTask(Task):
+class HighBarTask(ManipulationTask):
     """The robot hangs from a fixed bar (2.8 m up) by both hands; reward for a head-down
     handstand above it; terminates when the head drops below 2 m. No reset noise (HumanoidBench
     sets its noise scale to 0 here). Observation: the robot's qpos and qvel (151).
@@ -61,25 +61,23 @@ class HighBarTask(Task):
     arms (MJX has no cylinder-box pair, and the palms are boxes); the supports are visual only
     (1.2 m to either side, nothing reaches them)."""
 
+    robot_qpos = ROBOT_QPOS
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "highbar_hard"
     metric_names = ("upright_reward", "feet_reward", "small_control")
-    contacts = "manipulation"
     reset_noise = 0.0
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
         bar = spec.worldbody.add_body(name="athletic_high_bar", pos=(0.5, 0.0, 0.0))
         x = BAR_POS[0] - 0.5
         for y in (POSTS_Y, -POSTS_Y):
-            bar.add_geom(type=manip.CYLINDER, size=(BAR_RADIUS, POST_HALF, 0), pos=(x, y, 2.0),
+            bar.add_geom(type=scene.CYLINDER, size=(BAR_RADIUS, POST_HALF, 0), pos=(x, y, 2.0),
                          contype=0, conaffinity=0, group=1, rgba=(0.2, 0.2, 0.2, 1))  # fmt: skip
-        # touches the hands (manip.HANDS) and the rest of the robot (the floor's bits)
-        bar.add_geom(name="holding_bar_collision", type=manip.CAPSULE,
-                     size=(BAR_RADIUS, BAR_HALF, 0), pos=(x, 0.0, BAR_POS[2]), quat=manip.Y_AXIS,
-                     contype=manip.HANDS | manip.FLOOR, conaffinity=0, group=3,
+        # touches the hands (scene.HANDS) and the rest of the robot (the floor's bits)
+        bar.add_geom(name="holding_bar_collision", type=scene.CAPSULE,
+                     size=(BAR_RADIUS, BAR_HALF, 0), pos=(x, 0.0, BAR_POS[2]), quat=scene.Y_AXIS,
+                     contype=scene.HANDS | scene.FLOOR, conaffinity=0, group=3,
                      rgba=(0.7, 0.7, 0.72, 1))  # fmt: skip
-        manip.set_keyframe(spec, ROBOT_QPOS, ())
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         feet_z = jnp.stack([robot.site_pos(data, s)[2] for s in ("left_foot", "right_foot")])

@@ -8,8 +8,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_contact_bits, set_max_geom_pairs
-from sirl_jax.envs.tasks.common import fallen, robot_groups
+from sirl_jax.envs.humanoid import Task, fallen
+from sirl_jax.envs.tasks import scene
 
 CHAIR_POS = (-0.25, 0.0, 0.0)
 # HumanoidBench's chair: massless collision boxes; the mass (15.7 kg) comes from the visual
@@ -97,11 +97,12 @@ class SitTask(Task):
             raise ValueError(f"unknown sit task {name!r}; allowed: 'sit_simple', 'sit_hard'")
         self.name = name
         self.free = name == "sit_hard"
+        self.reset_edits = self.free  # sit_hard draws the root pose
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         # The feet stay on the floor in front of the seat; legs, body and arms touch the chair.
-        bits = set_contact_bits(spec, robot_groups(variant), ("legs", "body", "arms"))
-        set_max_geom_pairs(spec, 4)
+        bits = scene.set_contact_bits(spec, scene.robot_groups(variant), ("legs", "body", "arms"))
+        scene.set_max_geom_pairs(spec, 4)
         chair = spec.worldbody.add_body(name="chair", pos=CHAIR_POS)
         if self.free:
             chair.add_freejoint(name="free_chair")

@@ -10,8 +10,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, set_max_geom_pairs
-from sirl_jax.envs.tasks import manip
+from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.manipulation.base import ManipulationTask, body_id, with_robot_entries
 
 ROBOT_X = 2.0  # HumanoidBench's keyframe puts the robot at x 2
 TRUCK_POS = (8.0, 0.0, 0.0)
@@ -113,7 +113,7 @@ def truck_reward(
     return reward, status, terms
 
 
-class TruckTask(Task):
+class TruckTask(ManipulationTask):
     """A truck (static, its bed 1 m high, a ramp up to it) 4-12 m ahead with five heavy free
     packages (24-64 kg) on its bed, and a table at (2, -1.7); the robot starts at x 2. The task
     state is each package's status and its z after the first step; it starts afresh each
@@ -124,37 +124,35 @@ class TruckTask(Task):
     legs and arms (the robot walks up the ramp) and the packages; the packages touch the hands,
     the truck, the table, the floor and each other (they start stacked)."""
 
+    robot_qpos = with_robot_entries({0: ROBOT_X})
+    object_qpos = tuple(v for _, q in _PACKAGES for v in q)
+    max_geom_pairs = MAX_GEOM_PAIRS
     name = "truck"
     metric_names = (
         "upright", "reward_robot_package_truck", "reward_robot_package_picked_up",
         "reward_package_table", "packages_on_truck", "packages_picked_up", "packages_on_table",
         "success_subtasks", "success",
     )  # fmt: skip
-    contacts = "manipulation"
 
-    def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        manip.use_hand_contacts(spec)
+    def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
         truck = spec.worldbody.add_body(name="truck", pos=TRUCK_POS)
         for k, (pos, half) in enumerate(_TRUCK):  # the robot's body, legs, arms; the packages
-            manip.add_segmented_box(truck, f"truck_{k}", pos, half, SEGMENT, contype=manip.FLOOR,
+            scene.add_segmented_box(truck, f"truck_{k}", pos, half, SEGMENT, contype=scene.FLOOR,
                                     conaffinity=0, rgba=_GREY)  # fmt: skip
         pos, half, quat = _RAMP
-        truck.add_geom(name="slide_collision", type=manip.BOX, pos=pos, size=half, quat=quat,
-                       contype=manip.FLOOR, conaffinity=0, group=3, rgba=_GREY)  # fmt: skip
-        manip.add_table(spec, TABLE_POS, (0.5, 0.5, 0.05), top_z=0.45, leg_xy=(0.4, 0.4),
+        truck.add_geom(name="slide_collision", type=scene.BOX, pos=pos, size=half, quat=quat,
+                       contype=scene.FLOOR, conaffinity=0, group=3, rgba=_GREY)  # fmt: skip
+        scene.add_table(spec, TABLE_POS, (0.5, 0.5, 0.05), top_z=0.45, leg_xy=(0.4, 0.4),
                         leg_z=0.0, leg_half_z=0.5)  # fmt: skip
         for name, (half, _) in zip(PACKAGES, _PACKAGES, strict=True):
             body = spec.worldbody.add_body(name=name)
             body.add_freejoint(name=f"free_{name}")
-            manip.add_object_geom(body, touch_objects=True, type=manip.BOX, size=half,
+            scene.add_object_geom(body, touch_objects=True, type=scene.BOX, size=half,
                                   density=DENSITY, rgba=(0.75, 0.6, 0.4, 1))  # fmt: skip
-        robot = manip.with_robot_entries({0: ROBOT_X})
-        manip.set_keyframe(spec, robot, [v for _, q in _PACKAGES for v in q])
-        set_max_geom_pairs(spec, MAX_GEOM_PAIRS)
 
     def bind(self, model, robot) -> None:
-        self._packages = jnp.array([manip.body_id(model, n) for n in PACKAGES])
-        self._table = manip.body_id(model, "table")
+        self._packages = jnp.array([body_id(model, n) for n in PACKAGES])
+        self._table = body_id(model, "table")
 
     def init(self, key, qpos):
         n = len(PACKAGES)
