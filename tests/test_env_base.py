@@ -122,3 +122,16 @@ def test_termination_on_the_last_step_is_not_truncated(vec):
 def test_num_envs_must_be_positive():
     with pytest.raises(ValueError, match="num_envs"):
         VecEnv(CounterEnv(), 0)
+
+
+def test_an_env_that_cannot_switch_physics_says_so():
+    """`Env.with_physics`'s default refuses, naming the env and what is allowed; MJX-JAX on an
+    MJX-JAX env is the env itself (no copy, nothing rebuilt)."""
+    from sirl_jax.envs.loading import with_physics
+    from sirl_jax.envs.physics import Physics
+
+    env = CounterEnv()
+    assert env.physics_impl == "jax"
+    assert with_physics(env, Physics("jax")) is env
+    with pytest.raises(ValueError, match="CounterEnv cannot switch its physics.*allowed: impl='jax'"):
+        env.with_physics(Physics("warp"))

@@ -128,6 +128,19 @@ class Env(abc.ABC):
         """Names of the per-step metrics `step` reports (must match `reset`)."""
         return ()
 
+    @property
+    def physics_impl(self) -> str:
+        """The MJX backend this env steps with: "jax" (the default) or "warp"."""
+        return "jax"
+
+    def with_physics(self, physics: Any) -> Env:
+        """A copy that simulates with `physics` (`sirl_jax.envs.physics.Physics`: impl, worlds,
+        Warp buffer margin). Default: an env that can only run MJX-JAX refuses."""
+        raise ValueError(
+            f"{type(self).__name__} cannot switch its physics, so it cannot run "
+            f"impl={physics.impl!r}; allowed: impl='jax'"
+        )
+
 
 def init_state(
     physics: Any,

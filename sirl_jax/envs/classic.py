@@ -61,6 +61,10 @@ class PendulumSwingup(Env):
         self.mjx_model = self.sim.mx
         self._data0 = self.sim.make_data()
 
+    @property
+    def physics_impl(self) -> str:
+        return self.sim.impl
+
     def with_physics(self, physics: Physics) -> PendulumSwingup:
         """A copy that simulates with `physics` (impl, worlds, Warp buffer margin)."""
         env = copy.copy(self)

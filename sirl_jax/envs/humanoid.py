@@ -189,6 +189,10 @@ class HumanoidEnv(Env):
         extra = (OVERFLOW_METRIC,) if self.sim.impl == "warp" else ()
         self._metric_names = tuple(self.task.metric_names) + extra
 
+    @property
+    def physics_impl(self) -> str:
+        return self.sim.impl
+
     def with_physics(self, physics: Physics) -> HumanoidEnv:
         """A copy that simulates with `physics` (impl, worlds, Warp buffer margin)."""
         env = copy.copy(self)

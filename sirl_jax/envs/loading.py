@@ -43,17 +43,11 @@ def with_physics(env: Env, physics: Physics) -> Env:
 
     Raises:
       ImportError / RuntimeError: impl="warp" where warp-lang is missing / Warp cannot run.
-      ValueError: the env cannot switch its physics (it has no `with_physics`).
+      ValueError: the env cannot switch its physics (`Env.with_physics`'s default).
     """
     check_impl(physics.impl)
-    sim = getattr(env, "sim", None)
-    if physics.impl == "jax" and (sim is None or sim.impl == "jax"):
+    if physics.impl == "jax" and env.physics_impl == "jax":
         return env
-    if not hasattr(env, "with_physics"):
-        raise ValueError(
-            f"{type(env).__name__} has no with_physics, so it cannot run impl={physics.impl!r}; "
-            "allowed: impl='jax'"
-        )
     return env.with_physics(physics)
 
 

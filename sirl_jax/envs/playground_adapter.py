@@ -92,6 +92,10 @@ class PlaygroundEnv(Env):
         self._metric_names = tuple(sorted(probe.metrics))
         self._extra = (OVERFLOW_METRIC,) if self.sim is not None else ()
 
+    @property
+    def physics_impl(self) -> str:
+        return "jax" if self.sim is None else self.sim.impl
+
     def with_physics(self, physics: Physics) -> PlaygroundEnv:
         """The same env rebuilt to simulate with `physics` (impl, worlds, Warp buffer margin)."""
         return PlaygroundEnv(self.name, action_repeat=self.action_repeat, physics=physics)
