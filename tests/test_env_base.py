@@ -133,5 +133,5 @@ def test_an_env_that_cannot_switch_physics_says_so():
     env = CounterEnv()
     assert env.physics_impl == "jax"
     assert with_physics(env, Physics("jax")) is env
-    with pytest.raises(ValueError, match="CounterEnv cannot switch its physics.*allowed: impl='jax'"):
+    with pytest.raises(ValueError, match="CounterEnv cannot switch its physics.*impl='jax'"):
         env.with_physics(Physics("warp"))
