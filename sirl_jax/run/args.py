@@ -58,6 +58,9 @@ class PlotArgs:
     """Run directories."""
     out: str = "plot.png"
     """The PNG to write."""
+    reference: bool = False
+    """Draw the published TD-MPC2 and BMPC curves of each run's task (h1hand locomotion tasks;
+    others get a one-line note) under the runs' eval curves."""
 
 
 @dataclasses.dataclass(frozen=True)

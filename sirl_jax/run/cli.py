@@ -220,7 +220,7 @@ def plot(args: PlotArgs) -> int:
 
     if not args.runs:
         raise UsageError("plot needs at least one RUN_DIR")
-    plot_runs([Path(r) for r in args.runs], Path(args.out))
+    plot_runs([Path(r) for r in args.runs], Path(args.out), reference=args.reference)
     print(f"wrote {args.out}")
     return EXIT_OK
 
@@ -255,7 +255,7 @@ USAGE = """usage: python -m sirl_jax {train,tasks,eval,render,plot,export,sim2si
   eval   python -m sirl_jax eval RUN_DIR [--step N] [--episodes 10]: evaluate checkpoints
   render python -m sirl_jax render RUN_DIR [--policy planner|prior] [--out FILE.mp4], or
          render --random --task NAME: an mp4 of the policy (headless)
-  plot   python -m sirl_jax plot RUN_DIR... [--out FILE.png]: curves, R_max, scores
+  plot   python -m sirl_jax plot RUN_DIR... [--out FILE.png] [--reference]: curves, R_max, scores
   export python -m sirl_jax export RUN_DIR [--step N] [--out DIR]: ONNX policy, planner,
          params, scene model and observation/action contract
   sim2sim python -m sirl_jax sim2sim EXPORT_DIR [--episodes 5] [--policy prior|planner|random]:

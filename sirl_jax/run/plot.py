@@ -13,6 +13,10 @@ Panels:
   2. the TDMPBC paper's Fig. 8: the buffer's R_max and the training-episode return against env
      steps (metrics.csv);
   3. with runs of several tasks: the final eval return over the success bar per task (Fig. 2).
+
+With `reference=True` panel 1 also draws the published curves of each run's task
+(`sirl_jax.run.reference`: TD-MPC2 and BMPC on h1hand, mean and confidence band) up to the runs'
+last env step; a task without one gets a one-line note.
 """
 
 from __future__ import annotations
@@ -116,8 +120,35 @@ def _label(group: Sequence[RunCurves], all_groups: Sequence[Sequence[RunCurves]]
     return f"{group[0].task} " + " ".join(parts) + f" ({len(group)} seed{'s' * (len(group) > 1)})"
 
 
-def plot(run_dirs: Sequence[Path], out: Path) -> list[str]:
-    """Writes the PNG; returns the warning lines (collapses) it printed."""
+def _draw_references(ax, tasks: Sequence[str], runs: Sequence[RunCurves]) -> list[str]:
+    """The published curves of `tasks` on `ax`, up to the runs' last env step; returns the note
+    lines of tasks without one."""
+    from sirl_jax.envs import spec
+    from sirl_jax.run.reference import missing_reason, reference_curves
+
+    notes, styles = [], {"TD-MPC2": ("0.35", "--"), "BMPC": ("tab:olive", "-.")}
+    for task in tasks:
+        try:
+            task_id = spec(task).id
+        except KeyError:
+            task_id = task
+        curves = reference_curves(task_id)
+        if not curves:
+            notes.append(f"note: {missing_reason(task_id)}")
+            continue
+        last = max(float(r.eval_steps.max()) for r in runs if r.task == task)
+        for curve in curves:
+            c = curve.until(last)
+            color, style = styles.get(c.algo, ("0.5", ":"))
+            ax.plot(c.steps, c.mean, color=color, linestyle=style, linewidth=1.2,
+                    label=f"{c.algo} reference, h1hand-{c.task} (published, 3 seeds)")
+            ax.fill_between(c.steps, c.lcb, c.ucb, color=color, alpha=0.08)
+    return notes
+
+
+def plot(run_dirs: Sequence[Path], out: Path, reference: bool = False) -> list[str]:
+    """Writes the PNG; returns the warning lines (collapses) and, with `reference`, the note
+    lines of tasks without a reference curve, all of which it printed."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -155,6 +186,8 @@ def plot(run_dirs: Sequence[Path], out: Path) -> list[str]:
             axes[1].plot(run.train_steps[ok], run.r_max[ok], color=color, linestyle="--",
                          linewidth=1)  # fmt: skip
         finals.setdefault(group[0].task, []).append((label, mean[-1], std[-1]))
+    if reference:
+        warnings += _draw_references(axes[0], tasks, runs)
     for task in tasks:
         bar = spec(task).success_bar
         if bar is not None:
