@@ -23,7 +23,7 @@ import pytest
 from toys import ToyTrain, toy_argv
 
 from sirl_jax.envs import load
-from sirl_jax.run import cli, progress, runlog, runner
+from sirl_jax.run import cli, cost_probe, progress, runlog, runner
 from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.states import restore_state
 
@@ -300,10 +300,10 @@ def test_metric_mean_and_schedule():
 def test_run_cost_by_hand():
     # 10k steps left, 2k of them random seed steps: 8k / 4 envs = 2000 vectorised acting steps
     # (2000 x 0.3 s) and 2000 x 4 x 0.5 + 2000 pretraining = 6000 updates (6000 x 0.1 s).
-    cost = progress.run_cost_seconds(10_000, 2_000, 4, 0.5, 2_000, 0.3, 0.1)
-    assert cost == pytest.approx(600.0 + 600.0)
-    assert progress.run_cost_seconds(1_000, 2_000, 4, 0.5, 2_000, 0.3, 0.1) == pytest.approx(200.0)
-    assert progress.run_cost_seconds(0, 0, 1, 1.0, 0, 0.3, 0.1) == 0.0
+    run_cost_seconds = cost_probe.run_cost_seconds
+    assert run_cost_seconds(10_000, 2_000, 4, 0.5, 2_000, 0.3, 0.1) == pytest.approx(600.0 + 600.0)
+    assert run_cost_seconds(1_000, 2_000, 4, 0.5, 2_000, 0.3, 0.1) == pytest.approx(200.0)
+    assert run_cost_seconds(0, 0, 1, 1.0, 0, 0.3, 0.1) == 0.0
     assert progress.format_duration(1.2e6) == "13.9 days"
 
 

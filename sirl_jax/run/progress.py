@@ -27,30 +27,6 @@ def format_duration(seconds: float) -> str:
     return f"{seconds:.0f} s"
 
 
-def run_cost_seconds(
-    remaining_steps: int,
-    seed_steps_left: int,
-    num_envs: int,
-    utd: float,
-    pretrain_updates_left: int,
-    act_seconds: float,
-    update_seconds: float,
-) -> float:
-    """Seconds the agent's compute will take for the rest of a run (env physics excluded).
-
-    After the seed phase (random actions, no updates) every vectorised step acts once for
-    all `num_envs` envs and runs `num_envs * utd` updates; pretraining runs once.
-
-    Args:
-      remaining_steps: env transitions still to run (all envs).
-      seed_steps_left: of those, transitions still in the seed phase.
-      act_seconds: one plan (or policy) call for all envs; update_seconds: one update.
-    """
-    acting = max(remaining_steps - seed_steps_left, 0) / num_envs
-    updates = acting * num_envs * utd + pretrain_updates_left
-    return acting * act_seconds + updates * update_seconds
-
-
 class Rate:
     """Env steps/s and updates/s over the chunks since the first `skip` (compile) ones."""
 

@@ -12,12 +12,10 @@ import contextlib
 import dataclasses
 import math
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 
 from sirl_jax.config import Config, config_to_dict
 from sirl_jax.envs import load
@@ -25,6 +23,7 @@ from sirl_jax.envs import spec as registered_spec
 from sirl_jax.run import progress as prog
 from sirl_jax.run import runlog
 from sirl_jax.run.checkpoint import Checkpointer, CheckpointWriteError
+from sirl_jax.run.cost_probe import cost_line
 from sirl_jax.run.errors import TrainingFailure, UsageError
 from sirl_jax.run.states import commit, copy_state, restore_state, save_state
 from sirl_jax.sharding import ENVS, batch_constraint, env_shardings, make_mesh, place, sharded_step
@@ -104,54 +103,6 @@ def _oom_as_failure(config: Config, where: str):
         if "RESOURCE_EXHAUSTED" in str(e):
             raise _oom_failure(config, e, where) from e
         raise
-
-
-def cost_line(train: Train, state: Any, repeats: int = 3) -> str:
-    """Times one `Train.act` (planning), one `Train.update` and one vectorised env step of this
-    run (median of `repeats` calls after a warm-up) and says what the rest of the run costs.
-
-    The same estimate on any device: for the reference config on a CPU the answer is days,
-    on a GPU hours; either is worth having before the first chunk. The fused step overlaps
-    nothing of this, so the sum is the run's wall-clock up to the shell's overhead.
-    """
-    key = jax.random.PRNGKey(0)
-    t = train.config.train
-
-    def seconds(fn, *args) -> float:
-        jax.block_until_ready(fn(*args))  # compile and warm up
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            jax.block_until_ready(fn(*args))
-            times.append(time.perf_counter() - t0)
-        return sorted(times)[len(times) // 2]
-
-    t_act = seconds(jax.jit(train.act), state.replace(planning=jnp.ones((), bool)), key)
-    t_update = seconds(jax.jit(train.update), state.agent, state.buffer, key)
-    action = jnp.zeros((t.num_envs, train.env.action_size), jnp.float32)
-    t_env = seconds(jax.jit(train.vec_env.step), state.env, action)
-    done, planning = (int(x) for x in jax.device_get((state.env_steps, state.planning)))
-    remaining = max(t.steps - done, 0)
-    cost = prog.run_cost_seconds(
-        remaining,
-        seed_steps_left=0 if planning else max(train.seed_steps - done, 0),
-        num_envs=t.num_envs,
-        utd=t.utd,
-        pretrain_updates_left=0 if planning else train.pretrain_updates,
-        act_seconds=t_act,
-        update_seconds=t_update,
-    )
-    physics = remaining / t.num_envs * t_env
-    device = jax.devices()[0]
-    where = jax.default_backend().upper()
-    where += "" if device.platform == "cpu" else f" ({device.device_kind})"
-    what = "plan" if train.config.agent.mpc else "policy"
-    return (
-        f"{where}: about {prog.format_duration(cost)} of agent compute and "
-        f"{prog.format_duration(physics)} of env physics ({t.impl}) for the {remaining:,} steps "
-        f"left (one {what} call for {t.num_envs} env(s) {t_act:.3g} s, one update "
-        f"{t_update:.3g} s, one env step {t_env:.3g} s, measured now)"
-    )
 
 
 # ---------------------------------------------------------------- the loop

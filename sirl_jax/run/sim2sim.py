@@ -13,7 +13,8 @@ The CPU side's return is the task's own reward (`Task.evaluate`, the code that s
 evaluated on the MjData after each CPU control step, recorded by the rollout and scored
 after it: the driving loop stays contract-only, and the two returns are the same function
 of two simulators' states. Where the contract also describes the reward (the pendulum,
-stand/walk/run), its numpy value is reported beside it (`cpu_contract_return`).
+stand/walk/run), its numpy value is reported beside it (`cpu_contract_return`). The means and
+the printed table are `sim2sim_report.py`'s.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from sirl_jax.run import contract_sim as S
+from sirl_jax.run import sim2sim_report as report
 from sirl_jax.run.errors import UsageError
 
 POLICIES = ("prior", "planner", "random")
@@ -290,56 +292,11 @@ def _sim2sim(export_dir: Path, episodes: int, policy: str, max_steps: int | None
                        first_step_obs_diff=float(np.max(np.abs(c["obs"][1] - m["obs"][1]))),
                        parted_at=parted_at(c["obs"], m["obs"]))  # fmt: skip
         rows.append(row)
-    summary = _summary(rows, contract, scored)
-    print(_table(rows, summary))
+    summary = report.summary(rows, contract, scored)
+    print(report.table(rows, summary))
     return {"task": contract["task"]["id"], "policy": policy, "max_steps": T, "seed": seed,
             "cpu_return_source": "task" if scored else "contract", "episodes": rows,
             **summary}  # fmt: skip
-
-
-def _mean(rows: list[dict], key: str) -> float | None:
-    vals = [r[key] for r in rows if r.get(key) is not None]
-    return float(np.mean(vals)) if vals and len(vals) == len(rows) else None
-
-
-def _summary(rows: list[dict], contract: dict, scored: bool) -> dict:
-    keys = ("cpu_return", "cpu_length", "mjx_return", "mjx_length", "return_gap",
-            "first_step_obs_diff")  # fmt: skip
-    out = {f"mean_{k}": _mean(rows, k) for k in keys}
-    if out["mean_return_gap"] is not None:
-        out["mean_abs_return_gap"] = float(np.mean([abs(r["return_gap"]) for r in rows]))
-    if any("termination_agrees" in r for r in rows):
-        out["termination_agreement"] = float(np.mean([r["termination_agrees"] for r in rows]))
-    if not scored and contract["reward"]["kind"] == "not_described":
-        out["return_note"] = f"return not computed: {contract['reward']['why']}"
-    return out
-
-
-def _fmt(x, spec: str = ".2f") -> str:
-    return "n/a" if x is None else format(x, spec)
-
-
-def _table(rows: list[dict], summary: dict) -> str:
-    head = (f"{'ep':>3} | {'cpu return':>10} {'len':>5} | {'mjx return':>10} {'len':>5} | "
-            f"{'gap':>8} | {'obs diff @1':>11} {'parted at':>9}")  # fmt: skip
-    lines = [head, "-" * len(head)]
-    for r in rows:
-        lines.append(
-            f"{r['episode']:>3} | {_fmt(r['cpu_return']):>10} {r['cpu_length']:>5} | "
-            f"{_fmt(r.get('mjx_return')):>10} {r.get('mjx_length', '-'):>5} | "
-            f"{_fmt(r.get('return_gap')):>8} | {_fmt(r.get('first_step_obs_diff'), '.2e'):>11} "
-            f"{_fmt(r.get('parted_at'), 'd'):>9}")  # fmt: skip
-    lines.append(f"mean: cpu {_fmt(summary['mean_cpu_return'])} (len "
-                 f"{_fmt(summary['mean_cpu_length'], '.0f')}), mjx "
-                 f"{_fmt(summary['mean_mjx_return'])} (len "
-                 f"{_fmt(summary['mean_mjx_length'], '.0f')}), mean |gap| "
-                 f"{_fmt(summary.get('mean_abs_return_gap'))}")  # fmt: skip
-    if "termination_agreement" in summary:
-        lines.append(f"the contract's termination ended the CPU loop where the task's rule does "
-                     f"in {100 * summary['termination_agreement']:.0f}% of episodes")
-    if "return_note" in summary:
-        lines.append(summary["return_note"])
-    return "\n".join(lines)
 
 
 def main_sim2sim(args) -> int:
