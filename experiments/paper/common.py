@@ -29,33 +29,20 @@ from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import load
 from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.compile_cache import enable_compilation_cache
+from sirl_jax.run.reference import paper_2m, paper_hours
 from sirl_jax.run.runlog import CsvLog
 from sirl_jax.run.states import commit
 from sirl_jax.sharding import SEEDS, make_mesh, place, seed_shardings, sharded_step
 from sirl_jax.train import make_train
 
 # The paper's results table (HumanoidBench h1hand, return at 2M steps, mean ± std of 3 seeds):
-# task -> (success bar, (TDMPBC mean, std), (TD-MPC2 mean, std)). Transcribed from the paper.
-PAPER_TABLE = {
-    "walk": (700, (932.08, 0.82), (644.19, 344.25)),
-    "stand": (800, (929.67, 0.69), (749.79, 133.86)),
-    "run": (700, (874.58, 21.69), (66.14, 9.97)),
-    "reach": (12000, (7013.83, 685.29), (7120.75, 253.64)),
-    "hurdle": (700, (843.54, 63.58), (64.68, 9.7)),
-    "crawl": (700, (920.54, 45.88), (931.69, 33.19)),
-    "maze": (1200, (497.66, 124.5), (224.62, 25.65)),
-    "sit_simple": (750, (928.82, 1.12), (733.9, 255.79)),
-    "sit_hard": (750, (908.75, 2.27), (508.98, 365.77)),
-    "balance_simple": (800, (688.86, 239.99), (34.07, 4.42)),
-    "balance_hard": (800, (317.27, 379.72), (48.18, 8.49)),
-    "stair": (700, (640.37, 46.99), (66.5, 6.77)),
-    "slide": (700, (926.26, 2.17), (141.3, 19.09)),
-    "pole": (700, (958.58, 1.11), (207.46, 43.65)),
-}
+# task -> (success bar, (TDMPBC mean, std), (TD-MPC2 mean, std)), from the reference data file.
+PAPER_TABLE = {task: (row["success_bar"], tuple(row["TDMPBC"]), tuple(row["TD-MPC2"]))
+               for task, row in paper_2m().items()}  # fmt: skip
 ARMS = {"TDMPBC": 1.0, "TD-MPC2": 0.0}
 """The paper's two arms by their beta: TDMPBC and plain TD-MPC2."""
 # The paper's runtime table: hours for 2M steps of 3 seeds on one V100.
-PAPER_HOURS = {"walk": (37.71, 35.23), "reach": (37.73, 36.46), "hurdle": (36.61, 35.34)}
+PAPER_HOURS = {task: (row["TDMPBC"], row["TD-MPC2"]) for task, row in paper_hours().items()}
 
 SCALES = ("paper", "cpu")
 
