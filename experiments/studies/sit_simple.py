@@ -60,8 +60,8 @@ class Args:
     """tdmpc2 (beta 0) or tdmpbc (beta 1): run (or resume) that study arm at --study-config."""
     report: bool = False
     """Print the pilot and study tables from the CSVs."""
-    study_config: str = "e8-utd025"
-    """The pilot config the study runs at."""
+    study_config: str = "e4-utd1"
+    """The pilot config the study runs at (the pilot's winner, docs/results/sit_simple_study.md)."""
     budget_cpu_s: float = 2400.0
     seeds: int = 3
     steps: int = 100_000
