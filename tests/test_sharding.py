@@ -21,6 +21,10 @@ import pytest
 WORKER = Path(__file__).parent / "sharding_worker.py"
 
 
+# The module's worker compiles a sharded run on 4 simulated devices: 640 s of a fresh-clone
+# `make test`, so the whole module runs in `make test-slow`.
+pytestmark = pytest.mark.slow
+
 def _worker(*flags: str) -> dict:
     env = {**os.environ, "JAX_PLATFORMS": "cpu",
            "XLA_FLAGS": "--xla_force_host_platform_device_count=4"}  # fmt: skip

@@ -157,6 +157,7 @@ def _stand(obs, t, env):
 
 
 @needs_warp
+@pytest.mark.slow  # 128 s on a fresh clone; the pendulum, Cartpole and contact tests stay fast
 @pytest.mark.timeout(600)
 def test_warp_h1hand_walk_matches_jax_after_50_control_steps():
     out = {}
