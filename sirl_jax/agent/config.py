@@ -287,18 +287,8 @@ class AgentConfig:
     @classmethod
     def small(cls, **overrides) -> AgentConfig:
         """The CPU learning agent (the `cpu` preset's, and the CPU stand-in of the paper's runs):
-        latent 64, MLP 128, encoder 64, 2 Qs, MPPI 64 x 2 with 8 elites and 8 policy
-        trajectories, batch 64."""
-        base = dict(
-            model_size="tiny",
-            latent_dim=64,
-            mlp_dim=128,
-            enc_dim=64,
-            num_q=2,
-            num_samples=64,
-            num_elites=8,
-            num_pi_trajs=8,
-            iterations=2,
-            batch_size=64,
-        )
-        return cls(**{**base, **overrides})
+        `tiny` widened to latent 64, MLP 128, encoder 64, 2 Qs, MPPI 64 x 2 with 8 elites and 8
+        policy trajectories, batch 64."""
+        widened = dict(latent_dim=64, mlp_dim=128, enc_dim=64, num_q=2, num_samples=64,
+                       num_pi_trajs=8, batch_size=64)  # fmt: skip
+        return cls.tiny(**{**widened, **overrides})

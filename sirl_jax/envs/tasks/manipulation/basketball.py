@@ -45,7 +45,6 @@ HOOP_BOXES = (
 HOOP_POST = ((0.6, 0.0, -1.25), (0.05, 1.0))  # cylinder (pos, (radius, half length))
 SUCCESS_DIST, SUCCESS_BONUS = 0.05, 1000.0
 BALL_TERMINATION, ROOT_TERMINATION = 0.5, 0.5
-MAX_GEOM_PAIRS = 8
 CATCH, THROW = 0, 1
 
 
@@ -117,7 +116,7 @@ class BasketballTask(ManipulationTask):
 
     reset_edits = True
     object_qpos = (*BALL_KEY_POS, 1, 0, 0, 0)
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 8
     name = "basketball"
     reads_contact_slots = True  # the ball-hand touch
     metric_names = (

@@ -28,7 +28,6 @@ N_ITEMS = 5
 PLACED, GOAL_MARGIN = 0.15, 1.0
 BONUS = 100.0  # x k for the k-th placement
 ROOT_TERMINATION, OBJECT_TERMINATION = 0.58, 0.5
-MAX_GEOM_PAIRS = 12
 # Keyframe (HumanoidBench's): position and quaternion of each object; its (0, 0, 0, 0) entries
 # (no reset noise here) are the identity, which is what MuJoCo makes of them.
 _POSES = {
@@ -114,7 +113,7 @@ class BookshelfTask(ManipulationTask):
     extra_obs_size = 1
     object_qpos = tuple(v for name in OBJECTS for v in (
         *_POSES[name], *(() if len(_POSES[name]) == 7 else (1.0, 0.0, 0.0, 0.0))))  # fmt: skip
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 12
 
     def __init__(self, name: str):
         if name not in ("bookshelf_simple", "bookshelf_hard"):

@@ -26,7 +26,6 @@ SHELF_CENTRE_Z = (0.94, 1.54)  # subtask 3 (lateral cabinet), subtask 4 (pull-up
 HORIZONTAL_MARGIN, VERTICAL_MARGIN = 0.3, 0.3
 BONUS = 100.0  # x k on completing subtask k
 N_SUBTASKS = 4
-MAX_GEOM_PAIRS = 12
 
 Box = tuple[tuple[float, float, float], tuple[float, float, float], float | None]
 # (pos, half size, mass or None for density 1000) in the part's body frame.
@@ -139,7 +138,7 @@ class CabinetTask(ManipulationTask):
     # the five hinges and slides closed, then the cubes
     object_qpos = (0.0,) * 5 + tuple(
         v for _, z in CUBES for v in (CABINET_X, 0.0, z, 1.0, 0.0, 0.0, 0.0))
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 12
     name = "cabinet"
     metric_names = (
         "stand_reward", "small_control", "success_subtasks", "success", "subtask_complete",

@@ -23,7 +23,6 @@ CUBE_POS = ((0.45, 0.21, 1.125), (0.45, -0.21, 1.125))  # HumanoidBench's keyfra
 TARGET_POS = (0.5, 0.0, 1.5)  # a visual cube; only its orientation matters
 EULER_RANGE = 3.14
 ROOT_TERMINATION, CUBE_TERMINATION = 0.58, 0.6
-MAX_GEOM_PAIRS = 8
 _CUBES = ("left_cube_to_rotate", "right_cube_to_rotate")
 
 
@@ -82,7 +81,7 @@ class CubeTask(ManipulationTask):
 
     reset_edits = True
     object_qpos = tuple(v for pos in CUBE_POS for v in (*pos, 1.0, 0.0, 0.0, 0.0))
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 8
     name = "cube"
     metric_names = (
         "small_control", "stand_reward", "dont_move", "standing", "upright",

@@ -43,7 +43,6 @@ PASSAGE_X, PASSAGE_MARGIN = 1.2, 1.0
 HATCH_OPEN, HATCH_MARGIN = (0.75, 2.0), 0.75
 HAND_BOUND, HAND_MARGIN = 0.25, 1.0
 ROOT_TERMINATION = 0.58
-MAX_GEOM_PAIRS = 12
 _AXES = {"x": scene.X_AXIS, "y": scene.Y_AXIS}
 
 
@@ -105,7 +104,7 @@ class DoorTask(ManipulationTask):
     come from HumanoidBench's cylinders (non-colliding geoms)."""
 
     object_qpos = (0.0, 0.0)  # the door and hatch hinges
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 12
     name = "door"
     metric_names = (
         "stand_reward", "small_control", "door_openness_reward", "door_hatch_openness_reward",

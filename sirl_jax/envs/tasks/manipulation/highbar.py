@@ -18,7 +18,6 @@ BAR_RADIUS, BAR_HALF = 0.02, 1.2
 POSTS_Y, POST_HALF = 1.2, 2.0  # the two vertical supports: cylinders r 0.02 from z 0 to 4
 FEET_BOUND, FEET_MARGIN = 4.8, 2.0
 HEAD_TERMINATION = 2.0
-MAX_GEOM_PAIRS = 16
 
 # HumanoidBench's keyframe: hanging from the bar, arms overhead, fingers closed around it.
 _ARM = {"left": (0.0, 3.11, 0.0, 1.6, 0.0), "right": (0.0, -3.11, 0.0, 1.6, 0.0)}
@@ -62,7 +61,7 @@ class HighBarTask(ManipulationTask):
     (1.2 m to either side, nothing reaches them)."""
 
     robot_qpos = ROBOT_QPOS
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 16
     name = "highbar_hard"
     metric_names = ("upright_reward", "feet_reward", "small_control")
     reset_noise = 0.0

@@ -22,7 +22,6 @@ DENSITY = 1000.0  # the visual geoms' default; pegs 0.448 / 0.048 kg, block 0.38
 PEG_HEIGHT, PEG_HEIGHT_MARGIN = 1.1, 0.15
 TARGET_MARGIN, HAND_BOUND, HAND_MARGIN = 0.5, 0.2, 0.5
 ROOT_TERMINATION, OBJECT_TERMINATION = 0.5, 0.5
-MAX_GEOM_PAIRS = 12
 _PEGS = ("a", "b")
 
 
@@ -110,7 +109,7 @@ class InsertTask(ManipulationTask):
 
     object_qpos = tuple(v for p in (PEG_POS["a"], PEG_POS["b"], BLOCK_POS)
                         for v in (*p, 1, 0, 0, 0))  # fmt: skip
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 12
     metric_names = (
         "small_control", "stand_reward", "cube_target_reward", "hand_tool_proximity_reward",
         "peg_height_reward",

@@ -46,7 +46,6 @@ SUBTASK_GOALS = {
 # HumanoidBench's goals of the elements no subtask uses (not rewarded).
 OTHER_GOALS = {"top burner": (-0.92, -0.01), "slide cabinet": (0.37,), "hinge cabinet": (0.0, 1.45)}
 BONUS_THRESH = 0.3
-MAX_GEOM_PAIRS = 12
 
 # Keyframe (HumanoidBench's "qpos0"): root (0, -0.6, 0.98) with the quaternion it writes as
 # (1, 0, 0, 1.57), normalised here (yaw 2 atan(1.57) = 2.007 rad), legs in the stand pose.
@@ -166,7 +165,7 @@ class KitchenTask(ManipulationTask):
     robot_qpos = with_robot_entries({1: ROOT_POS[1], 2: ROOT_POS[2], 3: ROOT_QUAT[0],
                                      6: ROOT_QUAT[3]})  # fmt: skip
     object_qpos = OBJECT_QPOS0
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 12
     name = "kitchen"
     metric_names = (
         "success_subtasks", "success", "microwave_distance", "kettle_distance",

@@ -21,7 +21,6 @@ PACKAGE_DENSITY = 5.0  # 0.28 kg
 XY_RANGE = 2.0
 PACKAGE_Z, DESTINATION_Z = 0.35, 0.35  # destination_loc: body z 0 + site 0.35
 SUCCESS_DIST, SUCCESS_BONUS = 0.1, 1000.0
-MAX_GEOM_PAIRS = 8
 
 
 def package_reward(
@@ -81,7 +80,7 @@ class PackageTask(ManipulationTask):
 
     reset_edits = True
     object_qpos = (*PACKAGE_KEY_POS, 1, 0, 0, 0)
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 8
     name = "package"
     metric_names = (
         "stand_reward", "small_control", "dist_package_destination", "dist_hand_package_right",

@@ -19,7 +19,6 @@ BAR = (0.029, 0.65, 0.0)
 WEIGHTS = ((0.2, 0.2, 0.75), (0.2, 0.2, -0.75))
 LIFT_BOUNDS, LIFT_MARGIN = (1.9, 2.1), 2.0
 ROOT_TERMINATION = 0.2
-MAX_GEOM_PAIRS = 8
 
 
 def powerlift_reward(
@@ -55,7 +54,7 @@ class PowerliftTask(ManipulationTask):
     """
 
     object_qpos = (*DUMBBELL_POS, 1, 0, 0, 0)
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 8
     name = "powerlift"
     metric_names = (
         "stand_reward", "small_control", "reward_dumbbell_lifted", "standing", "upright",

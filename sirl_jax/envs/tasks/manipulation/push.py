@@ -26,7 +26,6 @@ HAND_DIST_COEF, TARGET_DIST_COEF, SUCCESS_BONUS = 0.1, 1.0, 1000.0
 # HumanoidBench's push keyframe: qpos[22] (left wrist yaw) and qpos[47] (right shoulder pitch) are
 # 1.57 (index 47 is the right shoulder pitch, not the right wrist yaw at 51; kept as it is).
 ROBOT_QPOS = with_robot_entries({22: 1.57, 47: 1.57})
-MAX_GEOM_PAIRS = 8
 
 
 def push_reward(
@@ -58,7 +57,7 @@ class PushTask(ManipulationTask):
     reset_edits = True
     robot_qpos = ROBOT_QPOS
     object_qpos = (*BOX_POS, 1, 0, 0, 0)
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 8
     name = "push"
     metric_names = ("target_dist", "hand_dist", "reward_success", "success")
     full_state_obs = False

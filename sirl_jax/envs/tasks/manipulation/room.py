@@ -23,7 +23,6 @@ OBJECTS = ("chair", "trophy", "headphone", "package_a", "package_b", "snow_globe
 X_LOW, Y_RANGE = -2.5, (1.2, 3.5)
 SPREAD_MARGIN = 3.0
 ROOT_TERMINATION = 0.3
-MAX_GEOM_PAIRS = 8
 _HEADPHONE_QUAT = (0.0733422, 0.0519076, -0.240058, -0.966591)  # HumanoidBench's reset value
 # Object keyframe poses: (z, quaternion). HumanoidBench's keyframe gives all but the headphone
 # the quaternion (0, 0, 0, 0); these are the orientations of its <body> elements.
@@ -77,7 +76,7 @@ class RoomTask(ManipulationTask):
 
     reset_edits = True
     object_qpos = tuple(v for n in OBJECTS for v in (0.0, 0.0, _POSES[n][0], *_POSES[n][1]))
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 8
     name = "room"
     metric_names = ("stand_reward", "small_control", "standing", "upright",
                     "room_object_organized")  # fmt: skip

@@ -30,7 +30,6 @@ TARGET_RADIUS, TARGET_PERIOD = 0.06, 40  # control steps per revolution
 SPIN_MARGIN, HAND_BOUND, HAND_MARGIN = 0.15, 0.2, 0.5
 IN_CUP, IN_CUP_Z = 0.1, 0.1  # |plate - cup| < 0.1 per axis, z measured from cup z + 0.1
 ROOT_TERMINATION = 0.58
-MAX_GEOM_PAIRS = 8
 # The cup (static): (pos, half size) of its walls, bottom and the handle's two bars.
 _CUP_BOXES = (
     ((0, 0.1, 0.1), (0.12, 0.02, 0.1)), ((0, -0.1, 0.1), (0.12, 0.02, 0.1)),
@@ -100,7 +99,7 @@ class SpoonTask(ManipulationTask):
     inertia come from HumanoidBench's cylinders (non-colliding geoms)."""
 
     object_qpos = (*SPOON_POS, 1, 0, 0, 0)
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 8
     name = "spoon"
     metric_names = (
         "stand_reward", "small_control", "hand_tool_proximity_reward", "reward_spoon_in_cup",

@@ -32,7 +32,6 @@ TABLE_X, TABLE_Y, TABLE_Z = (1.65, 2.35), (-2.05, -1.35), 0.5  # "upon the table
 EVENT, SUCCESS_BONUS = 100.0, 1000.0
 DIST_BOUND, DIST_MARGIN = 0.2, 4.0
 SEGMENT = 2.0  # m: the truck's long boxes are cut into pieces MJX's broad phase can rank
-MAX_GEOM_PAIRS = 12
 # Static truck boxes in the truck body's frame (pos, half size): the bed (its collider fills
 # the wheels' height), the two side walls, the front wall, the roof, the wall of packages
 # behind the load (one collider) and the ramp (pitched -0.5 rad about y).
@@ -126,7 +125,7 @@ class TruckTask(ManipulationTask):
 
     robot_qpos = with_robot_entries({0: ROBOT_X})
     object_qpos = tuple(v for _, q in _PACKAGES for v in q)
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 12
     name = "truck"
     metric_names = (
         "upright", "reward_robot_package_truck", "reward_robot_package_picked_up",

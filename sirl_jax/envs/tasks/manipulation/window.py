@@ -29,7 +29,6 @@ TOOL_SPEED, TOOL_SPEED_MARGIN = 0.5, 0.5
 HEAD_MOVE, HEAD_MOVE_MARGIN = 0.4, 0.1
 HAND_BOUND, HAND_MARGIN = 0.2, 0.5
 ROOT_TERMINATION, TOOL_TERMINATION = 0.58, 0.58
-MAX_GEOM_PAIRS = 8
 _WIPE_SITES = tuple(f"wipe_contact_site_{c}" for c in "abcde")
 _WIPE_SITE_POS = ((0.1, 0.04, 0.07), (-0.1, 0.04, 0.07), (0.1, 0.04, -0.03), (-0.1, 0.04, -0.03),
                   (0.0, 0.04, 0.02))  # fmt: skip
@@ -111,7 +110,7 @@ class WindowTask(ManipulationTask):
 
     reset_edits = True
     object_qpos = (*TOOL_POS, 1, 0, 0, 0, 1, 0, 0, 0)  # the tool's free joint, the wiper's ball
-    max_geom_pairs = MAX_GEOM_PAIRS
+    max_geom_pairs = 8
     name = "window"
     metric_names = (
         "stand_reward", "small_control", "moving_wipe_reward", "hand_tool_proximity_reward",
