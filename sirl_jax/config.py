@@ -20,6 +20,7 @@ from typing import Any
 
 from sirl_jax.agent.config import AgentConfig, SirlConfig
 from sirl_jax.agent.config import check as _check
+from sirl_jax.envs.hb_compat import EXACT, check_hb_compat
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,6 +34,9 @@ class TrainConfig:
     impl: str = "jax"
     """MJX physics backend: "jax" (XLA, any device; the default, CPU and GPU) or "warp"
     (MJX-Warp on a CUDA GPU or the CPU; needs the `warp` extra). See docs/training.md."""
+    hb_compat: str = EXACT
+    """HumanoidBench's quirks: "exact" reproduces them, so returns compare with the paper and
+    HumanoidBench's curves; "fixed" corrects them (docs/tasks.md, "HumanoidBench's quirks")."""
     seed: int = 0
     """PRNG seed of the run."""
     steps: int = 2_000_000
@@ -75,6 +79,7 @@ class TrainConfig:
     def __post_init__(self) -> None:
         _check(bool(self.task), "train.task", self.task, "a non-empty task name")
         _check(self.impl in ("jax", "warp"), "train.impl", self.impl, "'jax' or 'warp'")
+        check_hb_compat(self.hb_compat, "train.hb_compat")
         _check(self.seed >= 0, "train.seed", self.seed, "an int >= 0")
         _check(self.steps >= 1, "train.steps", self.steps, "an int >= 1")
         _check(self.num_envs >= 1, "train.num_envs", self.num_envs, "an int >= 1")

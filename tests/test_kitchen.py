@@ -139,7 +139,8 @@ def test_in_order_paid_once_and_terminates(strict_order):
     rewards, _ = _run([o0, o1, _done(o0, "kettle"), o2], strict_order)
     assert rewards == [0, 1, 1, 0]
     # Termination (and the metrics) through the task's evaluate.
-    task = KitchenTask(strict_order)
+    task = KitchenTask().with_hb_compat("fixed" if strict_order else "exact")
+    assert task.strict_order == strict_order
     state = kitchen_init_state(jnp.asarray(o0, jnp.float32))
     ends, successes = [], []
     for obj in objs:

@@ -293,8 +293,8 @@ def test_room_and_bookshelf_objects_rest():
     """Room's six objects at a reset pose stand on the floor (the headphone tips onto its
     side); the twelve bookshelf objects stay
     on their boards (the headphone settles 4 cm: its ear-cup boxes are narrower than the
-    cylinders they replace)."""
-    env = make("room")
+    cylinders they replace). Room's objects in fixed mode: their `<body>` orientations."""
+    env = make("room", hb_compat="fixed")
     m, d = env.mj_model, mujoco.MjData(env.mj_model)
     mujoco.mj_resetDataKeyframe(m, d, 0)
     qpos, _ = env.task.init(jax.random.PRNGKey(0), jnp.asarray(m.key_qpos[0]))

@@ -22,7 +22,13 @@ from sirl_jax.envs.tasks.manipulation.powerlift import powerlift_reward
 from sirl_jax.envs.tasks.manipulation.push import push_reward
 from sirl_jax.envs.tasks.manipulation.room import room_reward
 from sirl_jax.envs.tasks.manipulation.spoon import spoon_reward, spoon_target
-from sirl_jax.envs.tasks.manipulation.truck import ON_TABLE, ON_TRUCK, PICKED_UP, truck_reward
+from sirl_jax.envs.tasks.manipulation.truck import (
+    ON_TABLE,
+    ON_TRUCK,
+    PICKED_UP,
+    truck_lists,
+    truck_reward,
+)
 from sirl_jax.envs.tasks.manipulation.window import window_reward
 
 
@@ -365,12 +371,14 @@ def test_room_reward_spread():
     close(terms["room_object_organized"], 0.1 ** ((4 / 3) ** 2))
 
 
-def _truck(packages, status, z0, root=(100.0, 0.0, 1.0), table=(-100.0, 0.0, 0.45)):
-    """truck_reward with the robot and the table body far from every package unless given (the
-    "upon the table" test uses fixed bounds, not the body): the
-    distance terms are then 0 and the reward is the events alone."""
-    return truck_reward(jnp.asarray(1.0), jnp.asarray(root), jnp.asarray(table),
-                        jnp.asarray(packages), jnp.asarray(status, jnp.int32), jnp.asarray(z0))
+def _truck(packages, status, z0, root=(100.0, 0.0, 1.0), table=(-100.0, 0.0, 0.45), zz=-1.0):
+    """truck_reward ("fixed" lists) with the robot and the table body far from every package
+    unless given (the "upon the table" test uses fixed bounds, not the body), and the torso
+    upside down unless given (upright 0): the reward is then the events alone."""
+    lists = {**truck_lists(), "status": jnp.asarray(status, jnp.int32)}
+    r, lists, terms = truck_reward(jnp.asarray(zz), jnp.asarray(root), jnp.asarray(table),
+                                   jnp.asarray(packages), lists, jnp.asarray(z0))  # fmt: skip
+    return r, lists["status"], terms
 
 
 def test_truck_events_are_paid_once_each():
@@ -417,11 +425,11 @@ def test_truck_distance_terms():
     packages = start.copy()
     packages[0] = picked
     table = picked + np.array([0.0, 4.2, 0.0])
-    r, _, terms = _truck(packages, status, packages[:, 2] + 1.0, root=root, table=table)
+    r, _, terms = _truck(packages, status, packages[:, 2] + 1.0, root=root, table=table, zz=1.0)
     close(terms["reward_robot_package_truck"], 1.0)
     close(terms["reward_robot_package_picked_up"], 0.5)
     close(terms["reward_package_table"], 0.0)
-    close(r, 1.5)
+    close(r, 1.0 + 1.5)  # upright * (1 + the three terms), HumanoidBench's constant 1 included
     _, _, terms = _truck(start, np.full(5, ON_TRUCK), start[:, 2], root=root)
     close(terms["reward_robot_package_picked_up"], 0.0)  # nothing picked up: 0
 

@@ -124,6 +124,13 @@ class Env(abc.ABC):
     @abc.abstractmethod
     def step(self, state: EnvState, action: jax.Array) -> EnvState: ...
 
+    def reset_next(self, key: jax.Array, previous: EnvState) -> EnvState:
+        """The start of the episode that follows `previous` in the same env (`VecEnv`'s
+        auto-reset). Default: `reset(key)`. An env that reproduces state HumanoidBench keeps
+        across resets (`Task.carry`) overrides it; `reset` stays a fresh env's first episode."""
+        del previous
+        return self.reset(key)
+
     def metric_names(self) -> tuple[str, ...]:
         """Names of the per-step metrics `step` reports (must match `reset`)."""
         return ()
@@ -181,9 +188,11 @@ class VecEnv:
     `reset(key) -> EnvState[E]` and `step(state[E], action[E, A]) -> EnvState[E]` are pure and
     jittable. After a step that ends an episode (terminated or truncated), `obs` is the reset
     observation of the next episode, `first` is True, and `final_obs` keeps the last observation.
-    After a step whose physics blew up, the env is reset the same way but `blowup` is True and
-    no episode ended: `terminated`, `truncated` are False, `last_return`/`last_length` keep the
-    previous finished episode's, and reward, metrics and `final_obs` hold nothing non-finite.
+    The next episode starts from `Env.reset_next` (task state carried over only where an env
+    reproduces HumanoidBench's, `Task.carry`). After a step whose physics blew up, the env is
+    reset the same way but `blowup` is True and no episode ended: `terminated`, `truncated` are
+    False, `last_return`/`last_length` keep the previous finished episode's, and reward, metrics
+    and `final_obs` hold nothing non-finite.
 
     The env axis of the vmap is named `ENV_AXIS`, so an env can call
     `jax.lax.axis_index(ENV_AXIS)` (the fault-injection wrapper in the tests does).
@@ -228,7 +237,7 @@ class VecEnv:
         done = terminated | truncated
         episode_return = state.episode_return + nxt.reward
         key_reset, key_next = jax.random.split(state.key)
-        fresh = self.env.reset(key_reset)
+        fresh = self.env.reset_next(key_reset, nxt)
         stepped = nxt.replace(
             terminated=terminated,
             truncated=truncated,

@@ -36,6 +36,7 @@ from mujoco import mjx
 from sirl_jax.envs import h1
 from sirl_jax.envs import physics as _physics
 from sirl_jax.envs.base import Env, EnvState, init_state
+from sirl_jax.envs.hb_compat import EXACT, check_hb_compat
 from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, Simulator
 
 FRAME_SKIP = h1.N_SUBSTEPS
@@ -68,6 +69,21 @@ class Task(abc.ABC):
     reads_contact_slots: bool = False
     """`evaluate` reads MJX's contact slots (not only positions, velocities, sensors and forces),
     so a state from another simulator cannot be scored by it (sim2sim)."""
+    hb_compat: str = EXACT
+    """HumanoidBench's quirks: "exact" reproduces them, "fixed" corrects them (`hb_compat.py`,
+    docs/tasks.md); set it with `with_hb_compat`. Tasks without quirks never read it."""
+
+    def with_hb_compat(self, mode: str) -> Task:
+        """A copy of this task that treats HumanoidBench's quirks as `mode` says ("exact" or
+        "fixed"; anything else raises ValueError naming the value and the allowed ones)."""
+        task = copy.copy(self)
+        task.hb_compat = check_hb_compat(mode)
+        return task
+
+    @property
+    def exact(self) -> bool:
+        """HumanoidBench's quirks are reproduced (`hb_compat == "exact"`)."""
+        return self.hb_compat == EXACT
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         """Adds the task scene to `spec` (default: none)."""
@@ -87,6 +103,13 @@ class Task(abc.ABC):
         self, robot: Any, data: mjx.Data, task_state: Any
     ) -> tuple[jax.Array, jax.Array, Any, dict[str, jax.Array]]:
         """(reward [], terminated [] bool, new task state, metrics {name: []})."""
+
+    def carry(self, previous: Any, fresh: Any) -> Any:
+        """The task state an episode starts with when it follows one that ended in `previous`
+        (`VecEnv`'s auto-reset; `fresh` is `init`'s). Default: `fresh`. HumanoidBench keeps some
+        task state on its env object across resets; a task reproducing that returns it here."""
+        del previous
+        return fresh
 
     def after_reset(self, robot: Any, data: mjx.Data, task_state: Any) -> tuple[mjx.Data, Any]:
         """Edits the reset state once its kinematics are known (e.g. an object placed relative to
@@ -227,10 +250,19 @@ class HumanoidEnv(Env):
 
     def reset(self, key: jax.Array) -> EnvState:
         """Keyframe + U(+-0.01) on all qpos (task.reset_noise) + task randomisation; qvel = 0."""
+        return self._start(key, None)
+
+    def reset_next(self, key: jax.Array, previous: EnvState) -> EnvState:
+        """`reset`, with the task state `Task.carry` keeps from the episode that ended."""
+        return self._start(key, previous.task)
+
+    def _start(self, key: jax.Array, previous_task: Any) -> EnvState:
         key_noise, key_task, key_next = jax.random.split(key, 3)
         scale = self.task.reset_noise
         noise = jax.random.uniform(key_noise, self._qpos0.shape, minval=-scale, maxval=scale)
         qpos, task_state = self.task.init(key_task, self._qpos0 + noise)
+        if previous_task is not None:
+            task_state = self.task.carry(previous_task, task_state)
         data = self.sim.make_data(self.mx)
         data = data.replace(qpos=qpos, qvel=jnp.zeros_like(data.qvel))
         # Positions only (xpos, xmat, site_xpos for the observation extras). `step` starts with a

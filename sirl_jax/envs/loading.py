@@ -4,7 +4,8 @@ Names: a registry id (`h1hand-walk-v0`, `pendulum`), an alias (`walk`), or a pre
 for an optional family: `dmc:<Name>` / `playground:<Name>` (MuJoCo Playground, optional
 extra). The env is the source of truth for its episode length and success bar: the returned
 spec carries the env's values, so a factory override (`episode_length=...`) cannot leave the
-two disagreeing. `physics` picks the MJX backend (`sirl_jax/envs/physics.py`): factories build
+two disagreeing. `hb_compat` says how HumanoidBench's quirks are treated (`hb_compat.py`).
+`physics` picks the MJX backend (`sirl_jax/envs/physics.py`): factories build
 MJX-JAX envs, and `with_physics` rebuilds one for another impl.
 """
 
@@ -13,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 
 from sirl_jax.envs.base import Env
+from sirl_jax.envs.hb_compat import EXACT, check_hb_compat
 from sirl_jax.envs.physics import Physics, check_impl
 from sirl_jax.envs.playground_adapter import PREFIXES, register_playground_task
 from sirl_jax.envs.registry import TASKS, TaskSpec
@@ -51,14 +53,21 @@ def with_physics(env: Env, physics: Physics) -> Env:
     return env.with_physics(physics)
 
 
-def load(name: str, physics: Physics | None = None, **kwargs) -> tuple[TaskSpec, Env]:
+def load(
+    name: str, physics: Physics | None = None, hb_compat: str = EXACT, **kwargs
+) -> tuple[TaskSpec, Env]:
     """(spec, env) of a task; `kwargs` go to the task's factory (e.g. `episode_length`).
 
     physics: the MJX backend (None: MJX-JAX); impl="warp" is checked before anything is built.
+    hb_compat: HumanoidBench's quirks, "exact" (reproduced) or "fixed" (corrected)
+      (`sirl_jax/envs/hb_compat.py`); checked for every task, used by HumanoidBench's tasks.
     """
+    check_hb_compat(hb_compat)
     if physics is not None:
         check_impl(physics.impl)
     registered = spec(name)
+    if registered.takes_hb_compat:
+        kwargs["hb_compat"] = hb_compat
     env = registered.factory(**kwargs)
     if physics is not None:
         env = with_physics(env, physics)

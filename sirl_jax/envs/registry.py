@@ -24,6 +24,7 @@ class TaskSpec:
       success_bar: episode return counted as success (HumanoidBench's R_target), or None.
       aliases: short names that resolve to this id (e.g. `walk`).
       description: one line for `--help` and the docs.
+      takes_hb_compat: the factory takes `hb_compat` (HumanoidBench's tasks; `load` passes it).
     """
 
     id: str
@@ -32,6 +33,7 @@ class TaskSpec:
     success_bar: float | None = None
     aliases: tuple[str, ...] = ()
     description: str = ""
+    takes_hb_compat: bool = False
 
 
 class _Registry(Mapping[str, TaskSpec]):

@@ -13,6 +13,7 @@ import dataclasses
 from collections.abc import Callable
 
 from sirl_jax.envs import rewards as R
+from sirl_jax.envs.hb_compat import EXACT
 from sirl_jax.envs.humanoid import HumanoidEnv, Task
 from sirl_jax.envs.registry import TaskSpec, register
 from sirl_jax.envs.tasks.locomotion.balance import BalanceTask
@@ -119,10 +120,10 @@ lengths and success bars of spec §1."""
 
 
 def _factory(row: TaskRow, variant: str) -> Callable[..., HumanoidEnv]:
-    def make_env(episode_length: int = row.episode_length) -> HumanoidEnv:
-        return HumanoidEnv(
-            row.task(), variant, episode_length=episode_length, success_bar=row.success_bar
-        )
+    def make_env(episode_length: int = row.episode_length, hb_compat: str = EXACT) -> HumanoidEnv:
+        task = row.task().with_hb_compat(hb_compat)
+        return HumanoidEnv(task, variant, episode_length=episode_length,
+                           success_bar=row.success_bar)  # fmt: skip
 
     return make_env
 
@@ -140,6 +141,7 @@ for _row in LOCOMOTION:
                 episode_length=_row.episode_length,
                 success_bar=_row.success_bar,
                 aliases=(_row.name,) if _variant == "h1hand" else (),
+                takes_hb_compat=True,
                 description=(
                     f"HumanoidBench {_row.name} ({_variant}); terminates: {_row.termination}"
                 ),
@@ -154,6 +156,7 @@ for _row in MANIPULATION:
             episode_length=_row.episode_length,
             success_bar=_row.success_bar,
             aliases=(_row.name,),
+            takes_hb_compat=True,
             description=(
                 f"HumanoidBench {_row.name} ({_row.robot}); terminates: {_row.termination}"
             ),

@@ -10,6 +10,7 @@ from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
 from sirl_jax.envs.humanoid import contact_arrays, fallen, geom_mask
+from sirl_jax.envs.overlap import PairQuery
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.manipulation.base import (
     ManipulationTask,
@@ -111,7 +112,11 @@ class BasketballTask(ManipulationTask):
     the ball is within 0.05 of the hoop centre.
 
     Contacts: the ball touches the hands, the robot's body and arms (HumanoidBench's ball hits
-    the whole robot, and any ball contact ends the catch stage), the hoop and the floor.
+    the whole robot), the hoop and the floor. The catch stage ends at any active ball contact;
+    hb_compat "exact" (HumanoidBench's rule: any ball contact, the whole robot) also ends it
+    when the ball overlaps any robot collider (feet, legs, body, arms, hands, links: an exact
+    `PairQuery`, since the legs and links do not touch the ball here); "fixed" reads the
+    contacts alone.
     """
 
     reset_edits = True
@@ -148,6 +153,8 @@ class BasketballTask(ManipulationTask):
         ball_geom = geom_ids(model, ["basketball_collision"])
         self._ball_mask = jnp.asarray(geom_mask(model, ball_geom))
         self._hoop = robot.site_ids["hoop_center"]
+        robot_geoms = np.concatenate(list(robot.geom_ids.values()))
+        self._ball_robot = PairQuery(model, ball_geom, robot_geoms)
 
     def init(self, key, qpos):
         k_angle, k_sign = jax.random.split(key)
@@ -166,6 +173,8 @@ class BasketballTask(ManipulationTask):
         ball = data.xpos[self._ball]
         hoop = data.site_xpos[self._hoop]
         touched = R.any_contact(*contact_arrays(data), self._ball_mask)
+        if self.exact:
+            touched = touched | self._ball_robot.any(data)
         reward, stage, terms = basketball_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             hands, ball, hoop, touched, task_state["stage"],

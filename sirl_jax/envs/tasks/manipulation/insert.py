@@ -33,7 +33,7 @@ class InsertSize:
     base: float  # the base plate's half side (its half thickness is 0.005)
     wall: float  # a wall's half thickness
     wall_half_z: float
-    site_z: float  # the peg site's height above the body origin
+    site_z: tuple[float, float]  # peg_a's and peg_b's site heights above the body origin
     block: float  # the block's half width and half height (its half length is 0.15)
 
     def peg_boxes(self) -> list[tuple[tuple[float, float, float], tuple[float, float, float]]]:
@@ -49,9 +49,12 @@ class InsertSize:
 
 
 SIZES = {
-    "insert_normal": InsertSize(base=0.04, wall=0.01, wall_half_z=0.03, site_z=0.01, block=0.018),
-    "insert_small": InsertSize(base=0.02, wall=0.005, wall_half_z=0.01, site_z=0.005, block=0.008),
-}
+    "insert_normal": InsertSize(base=0.04, wall=0.01, wall_half_z=0.03, site_z=(0.01, 0.01),
+                                block=0.018),
+    # HumanoidBench's insert_small.xml puts peg_a's site at z 0.005 and peg_b's at z 0.01.
+    "insert_small": InsertSize(base=0.02, wall=0.005, wall_half_z=0.01, site_z=(0.005, 0.01),
+                               block=0.008),
+}  # fmt: skip
 
 
 def insert_reward(
@@ -125,10 +128,10 @@ class InsertTask(ManipulationTask):
         scene.add_table(spec, TABLE_POS, TABLE_TOP, top_z=0.45, leg_xy=(0.4, 0.4), leg_z=0.0,
                         leg_half_z=0.5)  # fmt: skip
         shades = {"a": (0.2, 0.2, 0.2, 1), "b": (0.8, 0.8, 0.8, 1)}
-        for ch in _PEGS:
+        for ch, site_z in zip(_PEGS, self.size.site_z, strict=True):
             peg = spec.worldbody.add_body(name=f"peg_{ch}", pos=PEG_POS[ch])
             peg.add_freejoint(name=f"free_peg_{ch}")
-            peg.add_site(name=f"peg_{ch}", pos=(0, 0, self.size.site_z))
+            peg.add_site(name=f"peg_{ch}", pos=(0, 0, site_z))
             for pos, half in self.size.peg_boxes():
                 scene.add_object_geom(peg, touch_objects=True, type=scene.BOX, pos=pos, size=half,
                                       density=DENSITY, rgba=shades[ch])  # fmt: skip

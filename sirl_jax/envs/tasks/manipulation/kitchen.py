@@ -137,12 +137,13 @@ class KitchenTask(ManipulationTask):
     No reset noise (HumanoidBench's is 0 here). Observation: qpos only, robot (76) then
     objects (21): 97. Task state: {"next": subtask index 0..4, "armed": bool}.
 
-    HumanoidBench bug (fixed by strict_order=True, the default; False reproduces it): its
-    ENFORCE_TASK_ORDER enforces only the order of payment, not of the work - `get_reward` pays an
-    element when `complete and (all_completed_so_far ...)`, where all_completed_so_far asks
-    whether the earlier *remaining* elements are within threshold now, so a kettle put on its
-    goal before the microwave is opened is paid together with the microwave (+2 in that step)
-    and any order of the chores earns the full return of 4.
+    HumanoidBench quirk (hb_compat "exact", the default, reproduces it: `strict_order` False;
+    "fixed" corrects it: `strict_order` True): its ENFORCE_TASK_ORDER enforces only the order
+    of payment, not of the work - `get_reward` pays an element when `complete and
+    (all_completed_so_far ...)`, where all_completed_so_far asks whether the earlier
+    *remaining* elements are within threshold now, so a kettle put on its goal before the
+    microwave is opened is paid together with the microwave (+2 in that step) and any order of
+    the chores earns the full return of 4.
 
     Scene deviations (all else is HumanoidBench's geometry, joints and masses): colliders only
     (HumanoidBench's visual meshes are left out); MJX has no cylinder-box pair, so the knob's
@@ -176,8 +177,10 @@ class KitchenTask(ManipulationTask):
     extra_obs_size = N_OBJECT_QPOS
     qvel_obs = False
 
-    def __init__(self, strict_order: bool = True):
-        self.strict_order = bool(strict_order)
+    @property
+    def strict_order(self) -> bool:
+        """Only the next subtask can be paid, once it has been seen undone (hb_compat "fixed")."""
+        return not self.exact
 
     def build_scene(self, spec: mujoco.MjSpec, variant: str) -> None:
         build_kitchen(spec)

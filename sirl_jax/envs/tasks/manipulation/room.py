@@ -69,6 +69,14 @@ class RoomTask(ManipulationTask):
     reset to either side of the robot; reward for gathering them. Terminates when the root drops
     below 0.3 m. Observation: full qpos and qvel (229).
 
+    HumanoidBench's quirks (hb_compat "exact" reproduces them, "fixed" does not): its reset
+    loop places seven "objects" for the scene's six, so the first write lands on the robot's
+    qpos[nq - 49] and qpos[nq - 48] (the right hand's LFJ2 and LFJ1), set to U(-3.5, -2.5) and
+    +-U(1.2, 3.5); its keyframe gives every object but the headphone the quaternion
+    (0, 0, 0, 0), so they start in the random orientation of the reset noise, and it writes the
+    headphone's quaternion after the noise. "fixed": the orientations of HumanoidBench's
+    `<body>` elements (the headphone's given one) + noise, and the robot untouched.
+
     Contacts: the objects touch the hands, the floor, the walls, the table and the shelf (not
     each other); the walls also touch the robot's body, legs and arms (HumanoidBench collides
     everything). Object colliders: `props` (cylinders as boxes and capsules, HumanoidBench's
@@ -95,7 +103,14 @@ class RoomTask(ManipulationTask):
 
     def bind(self, model, robot) -> None:
         self._bodies = jnp.array([body_id(model, n) for n in OBJECTS])
-        self._adr = jnp.array([free_joint_adr(model, f"free_{n}")[0] for n in OBJECTS])
+        adr = [free_joint_adr(model, f"free_{n}")[0] for n in OBJECTS]
+        self._adr = jnp.array(adr)
+        self._stray = model.nq - 7 * (len(OBJECTS) + 1)  # HumanoidBench's seventh "object"
+        quats = [a + 3 + k for a, n in zip(adr, OBJECTS, strict=True) if n != "headphone"
+                 for k in range(4)]  # fmt: skip
+        self._quats = jnp.asarray(quats)
+        self._key_quats = jnp.asarray(model.key_qpos[0][quats], jnp.float32)
+        self._headphone = adr[OBJECTS.index("headphone")] + 3
 
     def init(self, key, qpos):
         k_x, k_y, k_side = jax.random.split(key, 3)
@@ -104,7 +119,21 @@ class RoomTask(ManipulationTask):
         side = jnp.where(jax.random.bernoulli(k_side, 0.5, (n,)), 1.0, -1.0)
         y = side * jax.random.uniform(k_y, (n,), minval=Y_RANGE[0], maxval=Y_RANGE[1])
         qpos = qpos.at[self._adr].set(x).at[self._adr + 1].set(y)
+        if self.exact:
+            qpos = self._humanoidbench_writes(jax.random.fold_in(key, n), qpos)
         return qpos, ()
+
+    def _humanoidbench_writes(self, key: jax.Array, qpos: jax.Array) -> jax.Array:
+        """HumanoidBench's reset quirks: the stray "object" written into the right hand's
+        fingers, zero quaternions (the noise alone), the headphone's quaternion without noise."""
+        k_x, k_y, k_side = jax.random.split(key, 3)
+        x = X_LOW - 1.0 + jax.random.uniform(k_x, ())
+        side = jnp.where(jax.random.bernoulli(k_side, 0.5), 1.0, -1.0)
+        y = side * jax.random.uniform(k_y, (), minval=Y_RANGE[0], maxval=Y_RANGE[1])
+        qpos = qpos.at[self._stray].set(x).at[self._stray + 1].set(y)
+        qpos = qpos.at[self._quats].add(-self._key_quats)
+        head = jnp.asarray(_HEADPHONE_QUAT, qpos.dtype)
+        return qpos.at[self._headphone : self._headphone + 4].set(head)
 
     def evaluate(self, robot, data: mjx.Data, task_state):
         reward, terms = room_reward(

@@ -87,12 +87,14 @@ def spoon_reward(
 
 class SpoonTask(ManipulationTask):
     """A free spoon on a table next to a fixed cup; stir along a target that circles inside the
-    cup (radius 0.06 m, one turn per 40 control steps). The task state is the number of steps
-    scored so far; the reward of step k uses the target of phase k, and the observation after it
-    shows that target (HumanoidBench computes the observation before it advances its counter, so
-    the reset observation and the first step's show phase 0). HumanoidBench never resets its
-    counter, so its phase carries over from the previous episode; here each episode starts at
-    phase 0. Observation: full qpos and qvel, then the target (167).
+    cup (radius 0.06 m, one turn per 40 control steps). The task state is HumanoidBench's step
+    counter (mod 40: "phase") and the phase the observation shows ("shown"): a step's reward
+    uses the target of the phase, then advances it, and the observation after the step shows
+    the target its reward used (HumanoidBench computes the observation before it advances its
+    counter, so the reset observation and the first step's show the same phase).
+    HumanoidBench never resets its counter: hb_compat "exact" carries the phase over to the
+    next episode of the same env; "fixed" starts every episode at phase 0. Observation: full
+    qpos and qvel, then the target (167).
 
     Colliders (MJX has no cylinder-box pair, and the palms, table and cup are boxes): the handle
     is a capsule of the same length, the plate a box of the same area and thickness; the mass and
@@ -135,19 +137,27 @@ class SpoonTask(ManipulationTask):
         self._cup = body_id(model, "cup")
 
     def init(self, key, qpos):
-        return qpos, jnp.zeros((), jnp.int32)
+        zero = jnp.zeros((), jnp.int32)
+        return qpos, {"phase": zero, "shown": zero}
+
+    def carry(self, previous, fresh):
+        if not self.exact:
+            return fresh
+        return {"phase": previous["phase"], "shown": previous["phase"]}
 
     def reset_ops(self) -> list[dict]:
         return []  # init only starts the task state; the key is unused
 
-    def evaluate(self, robot, data: mjx.Data, step):
+    def evaluate(self, robot, data: mjx.Data, state):
         hands = hand_sites(robot, data)
+        phase = state["phase"]
         reward, terms = spoon_reward(
             robot.head_height(data), robot.torso_upright(data), robot.actuator_forces(data),
             hands, data.geom_xpos[self._handle], data.geom_xpos[self._plate],
-            data.xpos[self._cup], spoon_target(step),
+            data.xpos[self._cup], spoon_target(phase),
         )  # fmt: skip
-        return reward, data.qpos[2] < ROOT_TERMINATION, step + 1, terms
+        state = {"phase": (phase + 1) % TARGET_PERIOD, "shown": phase}
+        return reward, data.qpos[2] < ROOT_TERMINATION, state, terms
 
-    def extra_obs(self, robot, data: mjx.Data, step):
-        return spoon_target(jnp.maximum(step - 1, 0))
+    def extra_obs(self, robot, data: mjx.Data, state):
+        return spoon_target(state["shown"])

@@ -55,39 +55,87 @@ def _nearest(d: jax.Array, mask: jax.Array) -> jax.Array:
     return jnp.where(mask.any(), value, 0.0)
 
 
+def list_removals(
+    member: jax.Array, order: jax.Array, cond: jax.Array, exact: bool
+) -> tuple[jax.Array, jax.Array]:
+    """Which members of a package list HumanoidBench's `for p in lst: if cond(p): ...
+    lst.remove(p)` takes out, and the order they leave in.
+
+    exact: the list is the members sorted by `order`; removing the package under the iterator
+    shifts the next one into its place, so the loop skips it (HumanoidBench's quirk). Not
+    exact: every member meeting `cond` leaves.
+
+    Args:
+      member: [5] bool, in the list. order: [5] int32 list positions (smaller first).
+      cond: [5] bool.
+
+    Returns:
+      (removed [5] bool, rank [5] int32: how many removed packages left before each).
+    """
+    idx = jnp.argsort(jnp.where(member, order, jnp.iinfo(jnp.int32).max))
+    removed = jnp.zeros(member.shape, bool)
+    rank = jnp.zeros(member.shape, jnp.int32)
+    count, skip = jnp.zeros((), jnp.int32), jnp.zeros((), bool)
+    for i in range(member.shape[0]):
+        p = idx[i]
+        hit = member[p] & cond[p] & ~skip
+        removed, rank = removed.at[p].set(hit), rank.at[p].set(count)
+        count, skip = count + hit, hit if exact else skip
+    return removed, rank
+
+
+def _move(lists: dict, src: int, dst: int, cond: jax.Array, exact: bool):
+    """`lists` with the packages of list `src` that `cond` takes out appended to list `dst`."""
+    status, order, joins = lists["status"], lists["order"], lists["joins"]
+    removed, rank = list_removals(status == src, order, cond, exact)
+    moved = jnp.sum(removed).astype(jnp.int32)
+    lists = {"status": jnp.where(removed, dst, status),
+             "order": jnp.where(removed, joins + rank, order), "joins": joins + moved}  # fmt: skip
+    return lists, moved
+
+
+def truck_lists() -> dict[str, jax.Array]:
+    """HumanoidBench's three package lists at its start: all five on the truck, in order.
+    {"status": [5] int32 (ON_TRUCK, PICKED_UP, ON_TABLE), "order": [5] int32 the position in
+    its list, "joins": [] int32 the next position}."""
+    n = len(PACKAGES)
+    return {"status": jnp.full((n,), ON_TRUCK, jnp.int32), "order": jnp.arange(n, dtype=jnp.int32),
+            "joins": jnp.asarray(n, jnp.int32)}  # fmt: skip
+
+
 def truck_reward(
     zz: jax.Array,
     root: jax.Array,
     table: jax.Array,
     packages: jax.Array,
-    status: jax.Array,
+    lists: dict[str, jax.Array],
     z0: jax.Array,
-) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
+    exact: bool = False,
+) -> tuple[jax.Array, dict[str, jax.Array], dict[str, jax.Array]]:
     """HumanoidBench Truck: events, then upright-weighted distance terms.
 
     Events, in HumanoidBench's order within a step: a package on the truck whose z rises 0.1
     above its first-step z is picked up (+100); a picked-up package upon the table is placed
     (+100); a placed package no longer upon the table is picked up again (-100). Then
-    upright * (near(root, packages on the truck) + near(root, picked-up packages)
+    upright * (1 + near(root, packages on the truck) + near(root, picked-up packages)
     + near(table, picked-up packages)), near = tol(min distance, (0, 0.2), margin 4, linear),
-    0 for an empty set; + 1000 (and the episode ends) when all five are placed.
+    0 for an empty set; + 1000 (and the episode ends) when all five are placed. exact: each of
+    the three event loops skips the package after one it moves (`list_removals`).
 
     Args:
       zz: [] torso zz. root: [3] the robot's free-joint position. table: [3] the table body.
-      packages: [5, 3] package xpos. status: [5] int32 (ON_TRUCK, PICKED_UP, ON_TABLE).
-      z0: [5] the packages' z after the first step.
+      packages: [5, 3] package xpos. lists: `truck_lists` state. z0: [5] the packages' z
+      after the first step.
 
     Returns:
-      (reward [], new status [5], terms).
+      (reward [], new lists, terms).
     """
-    lifted = (status == ON_TRUCK) & (packages[:, 2] > z0 + LIFT)
-    status = jnp.where(lifted, PICKED_UP, status)
     on_table = _upon_table(packages)
-    placed = (status == PICKED_UP) & on_table
-    status = jnp.where(placed, ON_TABLE, status)
-    dropped = (status == ON_TABLE) & ~on_table
-    status = jnp.where(dropped, PICKED_UP, status)
-    events = EVENT * (jnp.sum(lifted) + jnp.sum(placed) - jnp.sum(dropped))
+    lists, lifted = _move(lists, ON_TRUCK, PICKED_UP, packages[:, 2] > z0 + LIFT, exact)
+    lists, placed = _move(lists, PICKED_UP, ON_TABLE, on_table, exact)
+    lists, dropped = _move(lists, ON_TABLE, PICKED_UP, ~on_table, exact)
+    status = lists["status"]
+    events = EVENT * (lifted + placed - dropped).astype(jnp.float32)
     upright = R.upright(zz, 0.9)
     to_root = jnp.linalg.norm(packages - root, axis=-1)
     to_table = jnp.linalg.norm(packages - table, axis=-1)
@@ -95,7 +143,7 @@ def truck_reward(
     near_picked = _nearest(to_root, status == PICKED_UP)
     near_table = _nearest(to_table, status == PICKED_UP)
     success = jnp.all(status == ON_TABLE)
-    reward = events + upright * (near_truck + near_picked + near_table)
+    reward = events + upright * (1.0 + near_truck + near_picked + near_table)
     reward = reward + jnp.where(success, SUCCESS_BONUS, 0.0)
     count = lambda s: jnp.sum(status == s).astype(jnp.float32)  # noqa: E731
     terms = {
@@ -109,15 +157,17 @@ def truck_reward(
         "success_subtasks": count(ON_TABLE),
         "success": success.astype(jnp.float32),
     }
-    return reward, status, terms
+    return reward, lists, terms
 
 
 class TruckTask(ManipulationTask):
     """A truck (static, its bed 1 m high, a ramp up to it) 4-12 m ahead with five heavy free
     packages (24-64 kg) on its bed, and a table at (2, -1.7); the robot starts at x 2. The task
-    state is each package's status and its z after the first step; it starts afresh each
-    episode (HumanoidBench keeps its lists across resets). Terminates when all five are on the
-    table. Observation: full qpos and qvel (216).
+    state is HumanoidBench's three package lists (`truck_lists`) and each package's z after the
+    first step. hb_compat "exact": the lists and heights carry over to the next episode of the
+    same env (HumanoidBench never resets them) and each event loop skips the package after one
+    it moves; "fixed": they start afresh each episode and every package is tested every step.
+    Terminates when all five are on the table. Observation: full qpos and qvel (216).
 
     Contacts: the truck (bed, ramp, walls, roof, the wall of packages) touches the robot's body,
     legs and arms (the robot walks up the ramp) and the packages; the packages touch the hands,
@@ -154,9 +204,10 @@ class TruckTask(ManipulationTask):
         self._table = body_id(model, "table")
 
     def init(self, key, qpos):
-        n = len(PACKAGES)
-        return qpos, {"status": jnp.full((n,), ON_TRUCK, jnp.int32),
-                      "z0": jnp.full((n,), jnp.nan, jnp.float32)}  # fmt: skip
+        return qpos, {**truck_lists(), "z0": jnp.full((len(PACKAGES),), jnp.nan, jnp.float32)}
+
+    def carry(self, previous, fresh):
+        return previous if self.exact else fresh
 
     def reset_ops(self) -> list[dict]:
         return []  # init only starts the task state; the key is unused
@@ -164,12 +215,13 @@ class TruckTask(ManipulationTask):
     def evaluate(self, robot, data: mjx.Data, state):
         packages = data.xpos[self._packages]
         z0 = jnp.where(jnp.isnan(state["z0"]), packages[:, 2], state["z0"])
-        reward, status, terms = truck_reward(
-            robot.torso_upright(data), data.qpos[:3], data.xpos[self._table], packages,
-            state["status"], z0,
+        lists = {k: state[k] for k in ("status", "order", "joins")}
+        reward, lists, terms = truck_reward(
+            robot.torso_upright(data), data.qpos[:3], data.xpos[self._table], packages, lists,
+            z0, self.exact,
         )  # fmt: skip
-        done = jnp.all(status == ON_TABLE)
-        return reward, done, {"status": status, "z0": z0}, terms
+        done = jnp.all(lists["status"] == ON_TABLE)
+        return reward, done, {**lists, "z0": z0}, terms
 
 
 _GREY = (0.5, 0.5, 0.5, 1)

@@ -103,7 +103,8 @@ class WindowTask(ManipulationTask):
     The tool-pane contact is an exact overlap test of the wiper box and the pane box (MuJoCo C
     finds a contact exactly when they overlap; margins are 0). HumanoidBench's keyframe gives the
     tool and the ball joint the quaternion (0, 0, 0, 0), so after reset noise both orientations
-    are random; here both start at (1, 0, 0, 0): the rod lies along y in front of the robot.
+    are random (the normalised noise); hb_compat "exact" does the same, "fixed" starts both at
+    (1, 0, 0, 0) + noise (this model's keyframe): the rod lies along y in front of the robot.
     Colliders: the rod is a capsule of the same length (MJX has no cylinder-box pair); the frame,
     pane, sphere and wiper are as in HumanoidBench. The tool touches the hands, the floor and the
     window; the robot's body passes through the window."""
@@ -152,8 +153,15 @@ class WindowTask(ManipulationTask):
         self._tool_vel_adr = int(model.sensor_adr[sensor])
         wipe, pane = geom_ids(model, ("window_wipe_collision", "window_pane_collision"))
         self._touch = PairQuery(model, [wipe], [pane])
+        tool = int(model.jnt_qposadr[model.joint("free_window_wiping_tool").id]) + 3
+        ball = int(model.jnt_qposadr[model.body_jntadr[body_id(model, "window_wiper_sphere")]])
+        adr = [*range(tool, tool + 4), *range(ball, ball + 4)]
+        self._quats = jnp.asarray(adr)
+        self._key_quats = jnp.asarray(model.key_qpos[0][adr], jnp.float32)
 
     def init(self, key, qpos):
+        if self.exact:  # HumanoidBench's zero quaternions: the reset noise alone
+            qpos = qpos.at[self._quats].add(-self._key_quats)
         return qpos, jnp.zeros(3, jnp.float32)
 
     def after_reset(self, robot, data: mjx.Data, head0):
