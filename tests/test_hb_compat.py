@@ -84,9 +84,12 @@ def test_bad_values_are_refused_naming_the_value_and_the_allowed_ones():
 @pytest.mark.timeout(300)
 def test_the_switch_reaches_the_task_from_the_cli_and_from_load():
     from sirl_jax.run import cli
+    from sirl_jax.run.errors import UsageError
     from sirl_jax.run.runner import load_task
 
     assert TrainConfig().hb_compat == "exact"
+    with pytest.raises(UsageError, match=r"^train.hb_compat='bogus' is invalid; allowed: one of"):
+        cli.parse_train_args(["--hb-compat", "bogus"])
     args, _ = cli.parse_train_args(["--task", "kitchen", "--hb-compat", "fixed"])
     assert args.config.train.hb_compat == "fixed"
     _, env = load_task("kitchen", hb_compat=args.config.train.hb_compat)  # what `build` does
