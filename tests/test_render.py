@@ -11,6 +11,7 @@ import jax
 import numpy as np
 import pytest
 
+from sirl_jax.run import camera
 from sirl_jax.run.errors import UsageError
 from sirl_jax.run.render import copy_state, select_gl
 
@@ -75,7 +76,66 @@ def test_render_refuses_bad_input(capsys, monkeypatch):
         (["render"], "give a RUN_DIR, or --random with --task NAME"),
         (["render", "/no/such/run"], "does not exist"),
         (["render", "--random", "--task", "pendulum", "--width", "0"], "--width=0 is invalid"),
+        (["render", "--random", "--task", "pendulum", "--camera", "nope"],
+         "--camera 'nope' is unknown; allowed: track, side, front, back, top"),
     ):
         assert cli.main(argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert err.startswith("error: ") and needle in err and "\n" not in err, err
+
+
+def test_camera_fit_by_hand():
+    # the box's bounding sphere has radius sqrt(3); the narrower half-angle is fovy/2 = 22.5 deg
+    lookat, distance = camera.fit(-np.ones(3), np.ones(3), 45.0, 4 / 3)
+    np.testing.assert_array_equal(lookat, np.zeros(3))
+    assert distance == pytest.approx(1.1 * np.sqrt(3) / np.sin(np.radians(22.5)))
+    # a tall narrow image: the horizontal half-angle atan(tan(22.5) / 2) is the narrower
+    _, narrow = camera.fit(-np.ones(3), np.ones(3), 45.0, 0.5)
+    half = np.arctan(np.tan(np.radians(22.5)) * 0.5)
+    assert narrow == pytest.approx(1.1 * np.sqrt(3) / np.sin(half))
+
+
+def _in_view(cam, points, fovy, aspect) -> bool:
+    """Every point projects inside the image of MuJoCo's free camera (mjv_updateCamera)."""
+    az, el = np.radians(cam.azimuth), np.radians(cam.elevation)
+    forward = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    up = np.array([-np.sin(el) * np.cos(az), -np.sin(el) * np.sin(az), np.cos(el)])
+    right = np.cross(forward, up)
+    rel = points - (np.asarray(cam.lookat) - cam.distance * forward)
+    depth = rel @ forward
+    tan_v = np.tan(np.radians(fovy) / 2)
+    return bool(np.all(depth > 0) and np.all(np.abs(rel @ up) / depth <= tan_v)
+                and np.all(np.abs(rel @ right) / depth <= tan_v * aspect))
+
+
+@pytest.mark.timeout(300)
+def test_tracking_camera_keeps_robot_and_task_objects_in_frame():
+    """h1hand-cube at its keyframe, and with the robot moved 1 m: every robot body, the cubes
+    and the table are inside the image; a fixed view does not move between frames."""
+    import mujoco
+
+    from sirl_jax.envs import load
+
+    _, env = load("h1hand-cube-v0")
+    model = env.mj_model
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    mujoco.mj_forward(model, data)
+    track = camera.Camera(model, "track", 640, 480)
+    track.start(model, data, lambda t: None, 1)
+    assert track.fixtures.size  # the table
+    what = track.what
+    cam = track.view(model, data)
+    points = np.concatenate([data.xpos[what.bodies], data.geom_xpos[track.fixtures]])
+    assert len(what.bodies) > 40 and _in_view(cam, points, 45.0, 640 / 480)
+    with pytest.raises(UsageError, match="allowed: track, side, front, back, top"):
+        camera.Camera(model, "nope", 640, 480)
+    side = camera.Camera(model, "side", 320, 240)
+    side.start(model, data, lambda t: None, 10)
+    first = (np.array(side.view(model, data).lookat), side.view(model, data).distance)
+    data.qpos[0] += 1.0
+    mujoco.mj_forward(model, data)
+    assert np.array_equal(side.view(model, data).lookat, first[0])
+    for _ in range(60):  # the tracking camera catches up with the moved robot
+        cam = track.view(model, data)
+    assert _in_view(cam, data.xpos[what.bodies], 45.0, 640 / 480)

@@ -35,7 +35,8 @@ def main(args: Args) -> None:
     import numpy as np
 
     from sirl_jax.envs import load
-    from sirl_jax.run.render import _camera, copy_state, rollout_states, write_video
+    from sirl_jax.run.camera import Camera
+    from sirl_jax.run.render import copy_state, rollout_states, write_video
 
     spec, env = load(args.task)
 
@@ -53,12 +54,15 @@ def main(args: Args) -> None:
                                   args.width, args.height, spec.id, shadows)  # fmt: skip
             written[shadows] = summary["frames"] / (time.perf_counter() - t0)
     model, data = env.mj_model, mujoco.MjData(env.mj_model)
-    renderer, camera = mujoco.Renderer(model, args.height, args.width), _camera(model)
+    renderer = mujoco.Renderer(model, args.height, args.width)
+    camera = Camera(model, "track", args.width, args.height)
     qpos, qvel = np.asarray(physics.qpos), np.asarray(physics.qvel)
+    copy_state(model, data, qpos[0, 0], qvel[0, 0])
+    camera.start(model, data, lambda t: None, 1)
     t0 = time.perf_counter()
     for t in range(args.frames):
         copy_state(model, data, qpos[t, 0], qvel[t, 0])
-        renderer.update_scene(data, camera)
+        renderer.update_scene(data, camera.view(model, data))
         renderer.render()
     draw = args.frames / (time.perf_counter() - t0)
     renderer.close()

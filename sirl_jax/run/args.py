@@ -40,13 +40,17 @@ class RenderArgs:
     task: str | None = None
     """With --random: the task to render (any registered name)."""
     out: str | None = None
-    """The mp4 to write (default: <run>-<step>-<policy>.mp4 or <task>-random.mp4)."""
+    """The mp4 to write (default: RUN_DIR/videos/<step>-<policy>.mp4, where `report` finds it,
+    or <task>-random.mp4)."""
     max_steps: int | None = None
     """Stop each episode after this many control steps (default: the task's T)."""
     width: int = 640
     height: int = 480
     shadows: bool = True
     """--no-shadows: skip shadows and reflections (about 3.4x faster without a GPU)."""
+    camera: str = "track"
+    """track (follows the robot and the task's objects) | side | front | back | top (fixed for
+    an episode, framing all of it) | a camera the task's model names."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,6 +65,17 @@ class PlotArgs:
     reference: bool = False
     """Draw the published TD-MPC2 and BMPC curves of each run's task (h1hand locomotion tasks;
     others get a one-line note) under the runs' eval curves."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ReportArgs:
+    """Write one self-contained HTML page of a run (opens offline): config, evaluations over
+    checkpoints, curves with the published reference, R_max, counters, cost, latest video."""
+
+    run: tyro.conf.Positional[str]
+    """The run directory."""
+    out: str | None = None
+    """The HTML file to write (default: RUN_DIR/report.html)."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -3,9 +3,10 @@
 The rollout (planner, policy prior, or uniform random actions) runs as one jitted `lax.scan`
 over N parallel episodes and returns the physics state of every step. Each state's qpos and
 qvel are copied into a `mujoco.MjData` of the env's own scene model (`Env.mj_model`, obstacles
-included), forwarded, and drawn by `mujoco.Renderer` from a camera tracking the pelvis (or the
-first body). Frames go to imageio's ffmpeg writer at the control rate (50 fps for the H1
-tasks), episode after episode, with the step and the return so far drawn on each.
+included), forwarded, and drawn by `mujoco.Renderer` from `--camera` (`camera.py`; by default
+one that tracks the robot and the task's objects). Frames go to imageio's ffmpeg writer at the
+control rate (50 fps for the H1 tasks), episode after episode, with the step and the return
+so far drawn on each.
 
 Headless OpenGL is chosen before MuJoCo is imported (`select_gl`): EGL where an NVIDIA GPU is
 visible, OSMesa otherwise, unless MUJOCO_GL is set. A missing library is a one-line error naming
@@ -20,6 +21,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from sirl_jax.run.camera import Camera, check_camera
 from sirl_jax.run.errors import UsageError
 
 _GL_LIBS = {
@@ -46,7 +48,24 @@ def select_gl(environ: dict | None = None) -> str:
             )
     env.setdefault("MUJOCO_GL", backend)
     env.setdefault("PYOPENGL_PLATFORM", backend)
+    if environ is None:
+        _rebind_gl_context(env["MUJOCO_GL"])
     return backend
+
+
+def _rebind_gl_context(backend: str) -> None:
+    """When `mujoco` was imported before `select_gl` (an import chain pulled it in), it bound
+    its renderer to GLFW, which needs a display; point it at the headless backend's context.
+    PyOpenGL, which reads PYOPENGL_PLATFORM at its first import, is only imported here."""
+    import importlib
+    import sys
+
+    if backend not in _GL_LIBS:
+        return
+    for name in ("mujoco.rendering.classic.gl_context", "mujoco.gl_context"):
+        module = sys.modules.get(name)
+        if module is not None:
+            module.GLContext = importlib.import_module(f"mujoco.{backend}").GLContext
 
 
 def rollout_states(env, act, aux0, num_episodes: int, key, steps: int):
@@ -85,19 +104,6 @@ def copy_state(model, data, qpos, qvel, mocap_pos=None, mocap_quat=None) -> None
     mujoco.mj_forward(model, data)
 
 
-def _camera(model):
-    import mujoco
-
-    cam = mujoco.MjvCamera()
-    pelvis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
-    cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-    cam.trackbodyid = pelvis if pelvis >= 0 else min(1, model.nbody - 1)
-    cam.distance = 4.0 if pelvis >= 0 else 2.5
-    cam.elevation = -15.0
-    cam.azimuth = 135.0
-    return cam
-
-
 def _caption(frame, text: str):
     from PIL import Image, ImageDraw
 
@@ -109,8 +115,11 @@ def _caption(frame, text: str):
 
 
 def write_video(env, physics, reward, done, out: Path, fps: int, width: int, height: int,
-                title: str, shadows: bool = True) -> dict[str, Any]:  # fmt: skip
+                title: str, shadows: bool = True,
+                camera: str = "track") -> dict[str, Any]:  # fmt: skip
     """Draws every episode's frames (up to its first end) into `out`; returns a summary.
+
+    camera: `camera.VIEWS` or one of the model's cameras (`camera.Camera`).
 
     shadows=False also drops reflections: about 3.4x faster on a software rasteriser (OSMesa,
     h1hand-hurdle at 640x480: 22 instead of 6.5 frames/s drawn).
@@ -127,8 +136,9 @@ def write_video(env, physics, reward, done, out: Path, fps: int, width: int, hei
         mocap = (np.asarray(physics.mocap_pos), np.asarray(physics.mocap_quat))
     reward, done = np.asarray(reward), np.asarray(done)
     steps, episodes = reward.shape
+    view = Camera(model, camera, width, height)
     renderer = mujoco.Renderer(model, height, width)
-    camera = _camera(model)
+    out.parent.mkdir(parents=True, exist_ok=True)
     frames, returns = 0, []
     # imageio starts ffmpeg with fork+exec; JAX warns about any fork, harmlessly here.
     warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called", category=RuntimeWarning)
@@ -139,10 +149,18 @@ def write_video(env, physics, reward, done, out: Path, fps: int, width: int, hei
                 ended = np.flatnonzero(done[:, ep])
                 length = int(ended[0]) + 1 if ended.size else steps
                 total = 0.0
+
+                def pose(t, ep=ep):
+                    data.qpos[:] = qpos[t, ep]
+                    if mocap:
+                        data.mocap_pos[:], data.mocap_quat[:] = mocap[0][t, ep], mocap[1][t, ep]
+                    mujoco.mj_kinematics(model, data)
+
+                view.start(model, data, pose, length)
                 for t in range(length):
                     extra = (mocap[0][t, ep], mocap[1][t, ep]) if mocap else ()
                     copy_state(model, data, qpos[t, ep], qvel[t, ep], *extra)
-                    renderer.update_scene(data, camera)
+                    renderer.update_scene(data, view.view(model, data))
                     if not shadows:
                         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
                         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
@@ -157,6 +175,13 @@ def write_video(env, physics, reward, done, out: Path, fps: int, width: int, hei
     return {"frames": frames, "returns": returns, "out": str(out)}
 
 
+def _check_scene(spec, env, camera: str) -> None:
+    """Before any rollout: the task has a MuJoCo scene, and `camera` is one of its cameras."""
+    if env.mj_model is None:
+        raise UsageError(f"task {spec.id} has no MuJoCo model to render")
+    check_camera(camera, env.mj_model)
+
+
 def render_command(args, backend: str) -> None:
     """`render` from parsed `cli.RenderArgs` (after `select_gl`); prints what it wrote."""
     from sirl_jax.run.compile_cache import enable_compilation_cache
@@ -166,7 +191,7 @@ def render_command(args, backend: str) -> None:
         Path(args.run) if args.run else None, task=args.task, step=args.step,
         episodes=args.episodes, policy="random" if args.random else args.policy,
         out=Path(args.out) if args.out else None, max_steps=args.max_steps, width=args.width,
-        height=args.height, shadows=args.shadows)  # fmt: skip
+        height=args.height, shadows=args.shadows, camera=args.camera)  # fmt: skip
     returns = ", ".join(f"{r:.1f}" for r in summary["returns"])
     print(f"wrote {summary['out']}: {summary['frames']} frames ({args.width}x{args.height}, "
           f"MUJOCO_GL={backend}), episode returns {returns}")  # fmt: skip
@@ -174,8 +199,10 @@ def render_command(args, backend: str) -> None:
 
 def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes: int,
            policy: str, out: Path | None, max_steps: int | None, width: int, height: int,
-           shadows: bool = True, seed: int = 0) -> dict[str, Any]:  # fmt: skip
-    """The body of `render` (call `select_gl` first)."""
+           shadows: bool = True, seed: int = 0,
+           camera: str = "track") -> dict[str, Any]:  # fmt: skip
+    """The body of `render` (call `select_gl` first). A run's video goes to
+    RUN_DIR/videos/<step>-<policy>.mp4 by default, where `report` finds it."""
     import jax
 
     from sirl_jax.run import runlog
@@ -191,6 +218,7 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
         if policy != "random" or task is None:
             raise UsageError("give a RUN_DIR, or --random with --task NAME")
         spec, env = load_task(task)
+        _check_scene(spec, env, camera)
         agent, agent_state = None, None
     else:
         if not run_dir.is_dir():
@@ -198,6 +226,7 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
         config = runlog.load_config(run_dir)
         spec, train = build(config)
         env, agent = train.env, train.agent
+        _check_scene(spec, env, camera)
         ckpt = Checkpointer(run_dir / "checkpoints")
         try:
             state, step = restore_state(ckpt, train.init, jax.random.PRNGKey(config.train.seed),
@@ -205,8 +234,6 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
         finally:
             ckpt.close()
         agent_state, seed = state.agent, config.train.seed
-    if env.mj_model is None:
-        raise UsageError(f"task {spec.id} has no MuJoCo model to render")
     steps = min(env.episode_length, max_steps or env.episode_length)
     if policy == "random":
         def act(s, aux, k):
@@ -224,8 +251,9 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
     key = eval_key(seed, step or 0)
     physics, reward, done = jax.device_get(jax.jit(
         lambda k: rollout_states(env, act, aux0, episodes, k, steps))(key))  # fmt: skip
-    name = spec.id if run_dir is None else f"{run_dir.name}-{step}"
-    out = out or Path(f"{name}-{policy}.mp4")
+    if out is None:
+        out = (Path(f"{spec.id}-{policy}.mp4") if run_dir is None
+               else run_dir / "videos" / f"{step}-{policy}.mp4")  # fmt: skip
     fps = max(1, round(1.0 / env.control_dt))
     return write_video(env, physics, reward, done, out, fps, width, height,
-                       f"{spec.id} {policy}", shadows)  # fmt: skip
+                       f"{spec.id} {policy}", shadows, camera)  # fmt: skip
