@@ -158,6 +158,21 @@ def test_eval_command_reproduces_the_logged_evaluation(runs, capsys):
 
 
 @pytest.mark.timeout(120)
+def test_report_of_a_real_run(runs, tmp_path, capsys):
+    """`report` on run A (after or before `eval`): one self-contained page, nothing written in
+    the run dir when --out points elsewhere."""
+    before = _listing(runs["a"])
+    out = tmp_path / "report.html"
+    capsys.readouterr()
+    assert cli.main(["report", str(runs["a"]), "--out", str(out)]) == 0
+    assert capsys.readouterr().out.strip() == f"wrote {out}"
+    page = out.read_text()
+    assert "pendulum" in page and f"last {STEPS:,}" in page and "data:image/png;base64," in page
+    assert "env blow-ups" in page and "env steps/s" in page and "train.num_envs" in page
+    assert _listing(runs["a"]) == before
+
+
+@pytest.mark.timeout(120)
 def test_eval_bad_input_gives_one_line(runs, tmp_path, capsys):
     cases = [
         ([str(tmp_path / "nope")], "does not exist"),

@@ -1,4 +1,5 @@
-"""The shell: `python -m sirl_jax {train,tasks,eval,render,plot,export,sim2sim}` (docs/cli.md).
+"""The shell: `python -m sirl_jax {train,tasks,eval,render,plot,report,export,sim2sim}`
+(docs/cli.md).
 
 This module parses argv and dispatches; the run loop is `runner.py`. `train` turns the `Config`
 dataclass tree into flags with tyro (`--agent.horizon 3`, `--train.num-envs 4`: every field is
@@ -24,7 +25,7 @@ import tyro
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.presets import PRESETS
 from sirl_jax.run import runlog
-from sirl_jax.run.args import EvalArgs, ExportArgs, PlotArgs, RenderArgs, Sim2simArgs
+from sirl_jax.run.args import EvalArgs, ExportArgs, PlotArgs, RenderArgs, ReportArgs, Sim2simArgs
 from sirl_jax.run.checkpoint import CheckpointError
 from sirl_jax.run.config_rules import check_resume, fit_to_task
 from sirl_jax.run.errors import TrainingFailure, UsageError
@@ -56,7 +57,8 @@ SHORT_FLAGS = _short_flags()
 
 @dataclasses.dataclass(frozen=True)
 class TrainArgs:
-    """Train a TD-MPC2 + TDMPBC agent. Short flags: --task --seed --steps --num-envs
+    """Train a TD-MPC2 + TDMPBC agent (or FastTD3 + SIRL: --agent.kind fasttd3, or a fasttd3-*
+    preset). Short flags: --task --seed --steps --num-envs
     --chunk-steps --utd --buffer-size --eval-every --checkpoint-every --log-every
     --[no-]save-buffer (train.*); --model-size --horizon --batch-size (agent.*); --beta,
     --g rmax|target, --bc-form, --[no-]sirl (agent.sirl.*)."""
@@ -64,7 +66,8 @@ class TrainArgs:
     config: Annotated[Config, tyro.conf.arg(name="")]
     preset: str = "default"
     """Config the flags start from: default (reference), tdmpbc-paper, smoke (CPU, ~minute),
-    cpu. smoke and cpu are sized for the task's episode length."""
+    cpu, gpu, gpu-fast; fasttd3-smoke, fasttd3-cpu, fasttd3-gpu (FastTD3 + SIRL). smoke, cpu
+    and fasttd3-smoke are sized for the task's episode length."""
     run_dir: str | None = None
     """Run directory (default: runs/<task>-s<seed>-<UTC time>); must not exist or be empty."""
     resume: str | None = None
@@ -225,6 +228,14 @@ def plot(args: PlotArgs) -> int:
     return EXIT_OK
 
 
+def report(args: ReportArgs) -> int:
+    """The `report` command (`report.write_report`): one self-contained HTML page."""
+    from sirl_jax.run.report import write_report
+
+    print(f"wrote {write_report(Path(args.run), Path(args.out) if args.out else None)}")
+    return EXIT_OK
+
+
 def export(args: ExportArgs) -> int:
     """The `export` command (`export.export_run`)."""
     from sirl_jax.run.export import main_export
@@ -247,7 +258,7 @@ def tasks() -> int:
     return EXIT_OK
 
 
-USAGE = """usage: python -m sirl_jax {train,tasks,eval,render,plot,export,sim2sim} [flags]
+USAGE = """usage: python -m sirl_jax {train,tasks,eval,render,plot,report,export,sim2sim} [flags]
 
   train  python -m sirl_jax train --task hurdle [--seed 1 --steps 1000000 --num-envs 4 ...]
          --preset smoke: a CPU-sized run; --resume RUN_DIR: continue; --help: every flag
@@ -256,6 +267,7 @@ USAGE = """usage: python -m sirl_jax {train,tasks,eval,render,plot,export,sim2si
   render python -m sirl_jax render RUN_DIR [--policy planner|prior] [--out FILE.mp4], or
          render --random --task NAME: an mp4 of the policy (headless)
   plot   python -m sirl_jax plot RUN_DIR... [--out FILE.png] [--reference]: curves, R_max, scores
+  report python -m sirl_jax report RUN_DIR [--out FILE.html]: one self-contained HTML page
   export python -m sirl_jax export RUN_DIR [--step N] [--out DIR]: ONNX policy, planner,
          params, scene model and observation/action contract
   sim2sim python -m sirl_jax sim2sim EXPORT_DIR [--episodes 5] [--policy prior|planner|random]:
@@ -279,6 +291,8 @@ def _dispatch(argv: list[str]) -> int:
         return render(tyro.cli(RenderArgs, args=rest, prog="python -m sirl_jax render"))
     if command == "plot":
         return plot(tyro.cli(PlotArgs, args=rest, prog="python -m sirl_jax plot"))
+    if command == "report":
+        return report(tyro.cli(ReportArgs, args=rest, prog="python -m sirl_jax report"))
     if command == "export":
         return export(tyro.cli(ExportArgs, args=rest, prog="python -m sirl_jax export"))
     if command == "sim2sim":
@@ -319,6 +333,6 @@ def run() -> None:
     raise SystemExit(code)
 
 
-__all__ = ["SHORT_FLAGS", "EvalArgs", "ExportArgs", "PlotArgs", "RenderArgs", "Sim2simArgs",
-           "TrainArgs", "TrainingFailure", "UsageError", "main", "parse_train_args",
+__all__ = ["SHORT_FLAGS", "EvalArgs", "ExportArgs", "PlotArgs", "RenderArgs", "ReportArgs",
+           "Sim2simArgs", "TrainArgs", "TrainingFailure", "UsageError", "main", "parse_train_args",
            "run"]  # fmt: skip
