@@ -158,10 +158,10 @@ class Config:
 
     def __post_init__(self) -> None:
         _check(
-            self.train.capacity >= self.agent.horizon + 1,
+            self.train.capacity >= self.agent.window + 1,
             "train.buffer_size",
             self.train.buffer_size,
-            f">= horizon + 1 ({self.agent.horizon + 1}) transitions",
+            f">= horizon + 1 ({self.agent.window + 1}) transitions (n-step + 1 under fasttd3)",
         )
 
     def validate_for_task(self, episode_length: int) -> None:
@@ -170,10 +170,10 @@ class Config:
         (Whether the task has the success bar `g_source="target"` needs is `make_agent`'s.)
         """
         _check(
-            episode_length > self.agent.horizon + 1,
+            episode_length > self.agent.window + 1,
             "episode_length",
             episode_length,
-            f"> horizon + 1 ({self.agent.horizon + 1}) for task {self.train.task!r}",
+            f"> horizon + 1 ({self.agent.window + 1}) for task {self.train.task!r}",
         )
         ring = self.train.capacity // self.train.num_envs
         _check(

@@ -1,7 +1,8 @@
 """Evaluation episodes: the planner and the policy prior alone, both in eval mode.
 
-N episodes run in parallel on a fresh `VecEnv(env, N)` for exactly T steps under one
-`lax.scan`; the first episode of each env counts (a terminated one is not restarted). An
+N episodes run in parallel on a fresh `VecEnv(env, N)` for up to T steps under one
+`lax.while_loop` that stops once every episode has ended (the steps after it would add nothing);
+the first episode of each env counts (a terminated one is not restarted). An
 episode whose physics blew up ends there with a NaN return: it is counted in
 `eval/<prefix>_blowups` and left out of the means (all of them NaN if every episode blew up). The
 returned R_max lets a shell plot the policy's return against the best return in the buffer
@@ -45,7 +46,17 @@ def _rollout(env: Env, num_episodes: int, act: Callable, aux0, key: jax.Array):
 
     init = (vec.reset(key_reset), aux0, jnp.zeros_like(zeros, bool), zeros, zeros,
             {n: zeros for n in names})  # fmt: skip
-    carry, _ = jax.lax.scan(body, init, jax.random.split(key_run, env.episode_length))
+    keys = jax.random.split(key_run, env.episode_length)
+
+    def running(loop):  # stop once every episode has ended: the steps after add nothing
+        t, carry = loop
+        return (t < env.episode_length) & ~jnp.all(carry[2])
+
+    def step(loop):
+        t, carry = loop
+        return t + 1, body(carry, keys[t])[0]
+
+    _, carry = jax.lax.while_loop(running, step, (jnp.int32(0), init))
     _, _, _, returns, lengths, terms = carry
     return returns, lengths, {n: v / jnp.maximum(lengths, 1.0) for n, v in terms.items()}
 
@@ -98,7 +109,7 @@ def make_evaluate(env: Env, agent, num_episodes: int, buffer) -> Callable:
     eval/{planner,policy}_term/<name>, each reward term's mean over the episodes' steps;
     eval/{planner,policy}_blowups, episodes cut short by a physics blow-up (left out of the
     means); and eval/r_max (the buffer's R_max). The planner entries are absent when
-    `agent.cfg.mpc` is False (the agent never plans then).
+    `agent.cfg.plans` is False (no planner: TD-MPC2 without MPC, or FastTD3).
     """
     _check_episodes(num_episodes)
     bar = env.success_bar
@@ -114,7 +125,7 @@ def make_evaluate(env: Env, agent, num_episodes: int, buffer) -> Callable:
 
         planner0 = agent.init_planner(num_episodes)
         metrics = {"eval/r_max": buffer.r_max(state.buffer)}
-        if agent.cfg.mpc:
+        if agent.cfg.plans:
             rollout = _rollout(env, num_episodes, plan, planner0, key_plan)
             metrics.update(_summary("planner", bar, *rollout))
         rollout = _rollout(env, num_episodes, policy, planner0, key_policy)

@@ -11,6 +11,11 @@
                  (1 env, UTD 1); S seeds are vmapped by the caller (docs/training.md).
   gpu-fast       gpu with 16 envs per seed and UTD 1/16 (one update per vectorised step), as
                  the official TD-MPC2 vectorised branch runs: a deviation from the paper.
+  fasttd3-smoke  FastTD3 + SIRL (`agent.kind="fasttd3"`) on the pendulum with small networks.
+  fasttd3-cpu    FastTD3 + SIRL sized for a 2-core CPU on h1hand-sit_simple: 32 envs, batch
+                 1024, critic 512 / actor 256 wide (FastTD3's: 128 envs, 32768, 1024 / 512).
+  fasttd3-gpu    FastTD3 + SIRL at FastTD3's HumanoidBench settings with 1024 envs (its own
+                 runs use 128 CPU-simulated envs), replay 2048 transitions per env.
 
 The CPU presets fit any task (`fits_task`): the shell applies `fit_to_task`
 (`sirl_jax/run/config_rules.py`) to them, which raises their episode-length-dependent sizes
@@ -22,7 +27,8 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterator, Mapping
 
-from sirl_jax.agent.config import AgentConfig
+from sirl_jax.agent.config import AgentConfig, SirlConfig
+from sirl_jax.agent.fasttd3_config import FastTD3Config
 from sirl_jax.config import Config, TrainConfig
 
 
@@ -124,6 +130,38 @@ def _gpu_fast() -> Config:
     return dataclasses.replace(base, train=train)
 
 
+def _fasttd3(**fields) -> AgentConfig:
+    """FastTD3 + the self-imitative term (beta 1, G = R_max), BC by squared error."""
+    return AgentConfig(kind="fasttd3", fasttd3=FastTD3Config(**fields),
+                       sirl=SirlConfig(bc_form="mse_mean"))  # fmt: skip
+
+
+def _fasttd3_smoke() -> Config:
+    return Config(
+        agent=_fasttd3(actor_hidden_dim=32, critic_hidden_dim=64, num_atoms=21, batch_size=64,
+                       v_min=-100.0, v_max=100.0),
+        train=dataclasses.replace(_smoke().train, seed_steps=400),
+    )  # fmt: skip
+
+
+def _fasttd3_cpu() -> Config:
+    return Config(
+        agent=_fasttd3(actor_hidden_dim=256, critic_hidden_dim=512, batch_size=1024),
+        train=TrainConfig(task="h1hand-sit_simple-v0", steps=1_000_000, num_envs=32,
+                          chunk_steps=50, seed_steps=320, buffer_size=1_000_000,
+                          eval_every=20_000, eval_episodes=8, log_every=10_000),
+    )  # fmt: skip
+
+
+def _fasttd3_gpu() -> Config:
+    return Config(
+        agent=_fasttd3(),
+        train=TrainConfig(task="h1hand-sit_simple-v0", steps=20_000_000, num_envs=1024,
+                          chunk_steps=100, seed_steps=10 * 1024, buffer_size=2048 * 1024,
+                          eval_every=500_000, eval_episodes=16, log_every=100_000),
+    )  # fmt: skip
+
+
 register_preset("default", Config, "the reference: TD-MPC2 5M + TDMPBC, HumanoidBench settings")
 register_preset(
     "tdmpbc-paper", _tdmpbc_paper, "the paper's runs: default + the HB fork's v1 policy log-prob"
@@ -137,6 +175,20 @@ register_preset(
 register_preset("gpu", _gpu, "one GPU seed of the paper's setting: 5M, 512 x 8 MPPI, 1 env, UTD 1")
 register_preset(
     "gpu-fast", _gpu_fast, "gpu with 16 envs per seed, UTD 1/16 (deviation: not the paper's)"
+)
+
+register_preset(
+    "fasttd3-smoke", _fasttd3_smoke, "FastTD3 + SIRL smoke run: small nets, pendulum, 4 envs",
+    fits_task=True,
+)
+register_preset(
+    "fasttd3-cpu", _fasttd3_cpu,
+    "FastTD3 + SIRL on a CPU: 32 envs, batch 1024, critic 512 / actor 256, h1hand-sit_simple",
+)
+register_preset(
+    "fasttd3-gpu", _fasttd3_gpu,
+    "FastTD3 + SIRL on one GPU: its HumanoidBench sizes (batch 32768, critic 1024 / actor 512), "
+    "1024 envs",
 )
 
 __all__ = ["PRESETS", "Preset", "get_preset", "register_preset"]

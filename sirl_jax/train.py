@@ -3,9 +3,10 @@
 E vectorised envs, the agent (MPPI planner + learner) and one device-resident replay buffer
 share a `TrainState`. `Train.step` runs K vectorised env steps under one `lax.scan`; each one:
 
-  1. acts (`Train.act`): uniform random actions until planning starts, then MPPI (or the
-     policy prior when `agent.mpc` is False), with a per-env warm start reset at each env's
-     first step;
+  1. acts (`Train.act`): uniform random actions until planning starts, then `Agent.act`:
+     TD-MPC2's MPPI (or its policy prior when `agent.mpc` is False) with a per-env warm start,
+     or FastTD3's actor with per-env exploration noise; either resets its per-env acting
+     state at each env's first step;
   2. steps the E envs (auto-reset, `final_obs` kept) and adds E transitions to the buffer,
      but none from an env whose physics blew up (`VecEnv` reset it; its episode is dropped);
   3. runs the updates `update_schedule` owes (`Train.update` each) in one `fori_loop` with a
@@ -69,8 +70,7 @@ def update_schedule(
     debt: jax.Array,
     can_sample: jax.Array,
     *,
-    num_envs: int,
-    utd: float,
+    updates_per_step: float,
     seed_steps: int,
     pretrain_updates: int,
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
@@ -78,8 +78,8 @@ def update_schedule(
 
     Seed phase: none. The step that reaches `seed_steps` transitions with a sampleable buffer
     starts planning and owes `pretrain_updates` (TD-MPC2's pretraining). Afterwards each step
-    owes `num_envs * utd`, the fractional part carried in `debt`. Nothing is owed while the
-    buffer cannot sample.
+    owes `updates_per_step` (`Train.updates_per_step`), the fractional part carried in `debt`.
+    Nothing is owed while the buffer cannot sample.
 
     Args:
       planning: [] bool planning had started before this step.
@@ -91,7 +91,7 @@ def update_schedule(
       (updates to run now [] int32, debt to carry [] float32, planning after this step [] bool).
     """
     start_now = ~planning & (env_steps >= seed_steps) & can_sample
-    owed = debt + jnp.where(planning, jnp.float32(num_envs * utd), 0.0)
+    owed = debt + jnp.where(planning, jnp.float32(updates_per_step), 0.0)
     regular = jnp.floor(owed)
     num = jnp.where(start_now, pretrain_updates, regular.astype(jnp.int32))
     num = jnp.where(can_sample, num, 0).astype(jnp.int32)
@@ -175,6 +175,8 @@ class Train:
         policy prior in eval mode.
       seed_steps: transitions of random acting before planning.
       pretrain_updates: updates run at once when the seed phase ends.
+      updates_per_step: `update` calls owed per vectorised env step once acting: TD-MPC2's
+        num_envs * utd, FastTD3's num_updates / policy_frequency.
     """
 
     config: Config
@@ -189,6 +191,7 @@ class Train:
     evaluate: Callable[[TrainState, jax.Array], dict[str, jax.Array]]
     seed_steps: int
     pretrain_updates: int
+    updates_per_step: float
 
 
 def make_train(config: Config, env: Env, *,
@@ -217,10 +220,14 @@ def make_train(config: Config, env: Env, *,
     o, a = env.observation_size, env.action_size
     agent = make_agent(ac, o, a, env.episode_length, env.success_bar)
     discount = agent.discount if ac.sirl.return_kind == "discounted" else 1.0
-    buffer = make_buffer(tc.capacity, e, o, a, ac.horizon, ac.batch_size, discount=discount,
+    buffer = make_buffer(tc.capacity, e, o, a, ac.window, ac.sample_size, discount=discount,
                          rmax_mode=ac.sirl.rmax_mode)  # fmt: skip
-    schedule = dict(num_envs=e, utd=tc.utd, seed_steps=tc.resolved_seed_steps(env.episode_length),
-                    pretrain_updates=tc.pretrain_updates(env.episode_length))  # fmt: skip
+    tdmpc2 = ac.kind == "tdmpc2"  # FastTD3 has no pretraining and its own update rate
+    schedule = dict(
+        updates_per_step=e * tc.utd if tdmpc2 else ac.fasttd3.updates_per_step,
+        seed_steps=tc.resolved_seed_steps(env.episode_length),
+        pretrain_updates=tc.pretrain_updates(env.episode_length) if tdmpc2 else 0,
+    )
 
     def init(key: jax.Array) -> TrainState:
         key_agent, key_env, key_run = jax.random.split(key, 3)
@@ -235,9 +242,7 @@ def make_train(config: Config, env: Env, *,
             return jax.random.uniform(key, (e, a), minval=-1.0, maxval=1.0), state.planner
 
         def exploit(_):
-            if ac.mpc:
-                return agent.plan(state.agent, state.planner, state.env.obs, state.env.first, key)
-            return agent.act_policy(state.agent, state.env.obs, key), state.planner
+            return agent.act(state.agent, state.planner, state.env.obs, state.env.first, key)
 
         return jax.lax.cond(state.planning, exploit, explore, None)
 
@@ -300,4 +305,5 @@ def make_train(config: Config, env: Env, *,
                  step=step, act=act, update=update,
                  evaluate=make_evaluate(env, agent, tc.eval_episodes, buffer),
                  seed_steps=schedule["seed_steps"],
-                 pretrain_updates=schedule["pretrain_updates"])  # fmt: skip
+                 pretrain_updates=schedule["pretrain_updates"],
+                 updates_per_step=schedule["updates_per_step"])  # fmt: skip

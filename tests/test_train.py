@@ -195,7 +195,7 @@ def test_target_return_ref_needs_a_success_bar():
 
 
 def _schedule(planning, env_steps, debt, can_sample=True, **kw):
-    args = dict(num_envs=4, utd=0.75, seed_steps=100, pretrain_updates=75)
+    args = dict(updates_per_step=3.0, seed_steps=100, pretrain_updates=75)
     args.update(kw)
     num, debt, planning = update_schedule(
         jnp.asarray(planning), jnp.asarray(env_steps), jnp.float32(debt), jnp.asarray(can_sample),
@@ -211,13 +211,13 @@ def test_update_schedule_by_hand():
     assert _schedule(False, 100, 0.0) == (75, 0.0, True)
     # ...but not before the buffer can sample: planning waits, nothing is owed.
     assert _schedule(False, 100, 0.0, can_sample=False) == (0, 0.0, False)
-    # Planning: 4 envs x 0.75 = 3 per step; with utd 0.3, 1.2 per step carries 0.2 each time.
+    # Planning: 3 per step (4 envs x UTD 0.75); 1.2 per step carries 0.2 each time.
     assert _schedule(True, 104, 0.0) == (3, 0.0, True)
-    num, debt, _ = _schedule(True, 104, 0.0, utd=0.3)
+    num, debt, _ = _schedule(True, 104, 0.0, updates_per_step=1.2)
     assert num == 1 and debt == pytest.approx(0.2)
-    num, debt, _ = _schedule(True, 108, 0.8, utd=0.3)  # 0.8 + 1.2 = 2.0: two, nothing left
+    num, debt, _ = _schedule(True, 108, 0.8, updates_per_step=1.2)  # 0.8 + 1.2 = 2: two, no debt
     assert num == 2 and debt == pytest.approx(0.0, abs=1e-6)
-    num, debt, _ = _schedule(True, 108, 0.5, num_envs=1, utd=0.25)  # 0.75: none yet
+    num, debt, _ = _schedule(True, 108, 0.5, updates_per_step=0.25)  # 0.75: none yet
     assert num == 0 and debt == pytest.approx(0.75)
 
 

@@ -16,6 +16,9 @@ Runs without `make` from wheels on PYTHONPATH (the repository root included). Ro
   project  hours for 2M steps x 3 seeds on walk, reach and hurdle (both settings), beside the
            paper's V100 hours. Walk's fused step is measured; reach and hurdle replace its env
            share by their own env step at 3 worlds (the task scenes differ only in physics).
+  fasttd3  the FastTD3 learner's fused `Train.step` at the `fasttd3-gpu` preset's sizes (1024
+           envs, batch 32768, critic 1024 / actor 512, 2 critic updates per vectorised step),
+           one seed, SIRL on: env steps/s, with critic updates/s in the note.
 Train rows use 25-step episodes so the seed phase ends within a chunk (the per-step cost is
 that of 1000-step ones). Rows run in priority order (the paper's projection first, Warp last);
 a row starts only within `--budget` seconds (default 360, so the last one and the table end
@@ -51,6 +54,7 @@ from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import VecEnv, load
 from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, raise_on_overflow, warp_unavailable
+from sirl_jax.presets import get_preset
 from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.train import make_train
 
@@ -76,6 +80,9 @@ class Sizes:
     episode_length: int = 25
     repeats: int = 3
     caveat: str = ""
+    fasttd3: AgentConfig = dataclasses.field(
+        default_factory=lambda: get_preset("fasttd3-gpu").agent)
+    fasttd3_envs: int = 1024
 
     @classmethod
     def quick(cls) -> Sizes:
@@ -94,6 +101,8 @@ class Sizes:
             episode_length=10,
             repeats=2,
             caveat="quick sizes (pendulum, tiny agent), not a projection; ",
+            fasttd3=get_preset("fasttd3-smoke").agent,
+            fasttd3_envs=4,
         )
 
 
@@ -109,6 +118,7 @@ def row_names(sizes: Sizes) -> list[str]:
     for task, _ in sizes.tasks:
         for name, _, _ in sizes.settings:
             names += [f"project {task} {name} {arm}" for arm in ("TDMPBC", "TD-MPC2")]
+    names += [f"fasttd3 S=1 E={sizes.fasttd3_envs}"]
     return names
 
 
@@ -213,10 +223,12 @@ def agent_jobs(sizes: Sizes, obs: int, act: int) -> list[tuple[str, object, int]
 
 
 @functools.cache
-def train_seconds(sizes: Sizes, task: str, num_envs: int, utd: float, sirl: bool):
+def train_seconds(sizes: Sizes, task: str, num_envs: int, utd: float, sirl: bool,
+                  agent: AgentConfig | None = None, seeds: int = SEEDS):  # fmt: skip
     """(seconds per chunk of S vmapped fused steps after the seed phase, first call s,
-    non-finite count of the last chunk)."""
-    agent = dataclasses.replace(sizes.agent, sirl=SirlConfig(enabled=sirl))
+    non-finite count of the last chunk). `agent` replaces the sizes' TD-MPC2 agent."""
+    if agent is None:
+        agent = dataclasses.replace(sizes.agent, sirl=SirlConfig(enabled=sirl))
     t = sizes.episode_length
     steps = 4 * num_envs * (t + 1)
     train_cfg = TrainConfig(task=task, num_envs=num_envs, utd=utd, chunk_steps=sizes.train_chunk,
@@ -226,7 +238,7 @@ def train_seconds(sizes: Sizes, task: str, num_envs: int, utd: float, sirl: bool
     train = make_train(Config(agent=agent, train=train_cfg), env)
     step = jax.jit(jax.vmap(train.step), donate_argnums=0)
     t0 = time.perf_counter()
-    state = jax.jit(jax.vmap(train.init))(jax.random.split(jax.random.PRNGKey(0), SEEDS))
+    state = jax.jit(jax.vmap(train.init))(jax.random.split(jax.random.PRNGKey(0), seeds))
     state, metrics = jax.block_until_ready(step(state))
     first = time.perf_counter() - t0
     while not bool(np.all(jax.device_get(state.planning))):
@@ -321,6 +333,20 @@ class Bench:
 
         self.run(f"train {name} SIRL overhead", overhead)
 
+    def fasttd3(self) -> None:
+        s, e = self.sizes, self.sizes.fasttd3_envs
+
+        def fn():
+            seconds, first, bad = train_seconds(s, s.tasks[0][1], e, 1.0, True, s.fasttd3, 1)
+            if bad:
+                raise FloatingPointError(f"{bad} physics blow-ups or non-finite losses")
+            critic = s.train_chunk * s.fasttd3.fasttd3.num_updates / seconds
+            note = (f"{s.caveat}{critic:.4g} critic updates/s (batch "
+                    f"{s.fasttd3.fasttd3.batch_size}), first call {first:.0f} s")  # fmt: skip
+            return e * s.train_chunk / seconds, "env steps/s", note
+
+        self.run(f"fasttd3 S=1 E={e}", fn)
+
     def project(self, setting: tuple[str, int, float]) -> None:
         """Hours for 2M steps per seed, S seeds vmapped: walk's fused step, with the env step
         of walk swapped for the task's at the setting's S * E worlds."""
@@ -370,6 +396,7 @@ def main(argv: list[str] | None = None) -> None:
     bench.agent(probe.observation_size, probe.action_size)
     for e in sizes.env_envs:
         bench.env("jax", e, warp)
+    bench.fasttd3()
     bench.train(throughput)
     bench.project(throughput)
     for e in sizes.env_envs:

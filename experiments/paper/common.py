@@ -131,10 +131,12 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
         c0 = time.process_time()
         ev = jax.device_get(evaluate(state, jax.vmap(jax.random.fold_in, (0, None))(
             eval_keys, env_steps)))  # fmt: skip
+        for k in ("return", "length"):  # an agent without a planner (FastTD3): empty columns
+            ev.setdefault(f"eval/planner_{k}", np.full(seeds, np.nan))
         eval_csv.extend([{
             "seed": s, "env_steps": env_steps, "wall_s": round(wall, 1),
             "planner_return": _finite(ev["eval/planner_return"][s]),
-            "planner_length": float(ev["eval/planner_length"][s]),
+            "planner_length": _finite(ev["eval/planner_length"][s], 2),
             "policy_return": _finite(ev["eval/policy_return"][s]),
             "policy_length": float(ev["eval/policy_length"][s]),
             "r_max": _finite(ev["eval/r_max"][s]), "cpu_s": round(train_cpu(), 1),

@@ -3,6 +3,7 @@
     .venv/bin/python -m experiments.studies.sit_simple --pilot e8-utd025   # one pilot config
     .venv/bin/python -m experiments.studies.sit_simple --arm tdmpc2        # a study arm, 3 seeds
     .venv/bin/python -m experiments.studies.sit_simple --report            # tables from the CSVs
+    .venv/bin/python -m experiments.studies.sit_simple --random-episodes 64  # the random baseline
 
 The pilot picks the config that learns most per CPU hour on a 2-core machine: each pilot
 config trains one seed (beta 0) for the same budget of process CPU time (`--budget-cpu-s`,
@@ -15,13 +16,18 @@ train.csv / eval.csv incrementally under `--results`.
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
+import jax
 import tyro
 
 from experiments.paper.common import run_arm
 from sirl_jax.agent.config import AgentConfig, SirlConfig
 from sirl_jax.config import Config, TrainConfig
+from sirl_jax.envs import load
+from sirl_jax.evaluate import make_random_evaluate
+from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.run.runlog import CsvLog
 
 TASK = "h1hand-sit_simple-v0"
@@ -39,15 +45,16 @@ PILOTS: dict[str, tuple[dict, dict]] = {
 }  # fmt: skip
 
 
-def config(pilot: str, beta: float, steps: int) -> Config:
-    """The named pilot config at `beta`, `steps` env steps per seed."""
+def config(pilot: str, beta: float, steps: int, eval_every: int = 5_000) -> Config:
+    """The named pilot config at `beta`, `steps` env steps per seed, evaluated every
+    `eval_every` env steps (the pilots: 5k; the study: 10k, what the issue asks)."""
     if pilot not in PILOTS:
         raise SystemExit(f"error: pilot {pilot!r} is unknown; allowed: {', '.join(PILOTS)}")
     agent, train = PILOTS[pilot]
     return Config(
         agent=AgentConfig.small(**agent, sirl=SirlConfig(beta=beta)),
         train=TrainConfig(task=TASK, steps=steps, chunk_steps=50, buffer_size=steps,
-                          eval_every=5_000 if steps <= 100_000 else 10_000, eval_episodes=4,
+                          eval_every=eval_every, eval_episodes=4,
                           **train),
     )  # fmt: skip
 
@@ -60,6 +67,9 @@ class Args:
     """tdmpc2 (beta 0) or tdmpbc (beta 1): run (or resume) that study arm at --study-config."""
     report: bool = False
     """Print the pilot and study tables from the CSVs."""
+    random_episodes: int = 0
+    """> 0: measure the uniform random policy's return over this many episodes (one jitted
+    rollout, every episode from its own reset) and write results/.../random.json."""
     study_config: str = "e4-utd1"
     """The pilot config the study runs at (the pilot's winner, docs/results/sit_simple_study.md)."""
     budget_cpu_s: float = 2400.0
@@ -79,6 +89,22 @@ def report(root: Path) -> None:
                   f" prior {r['policy_return']:>7} len {r['planner_length']}")
 
 
+def random_baseline(episodes: int, out: Path) -> dict:
+    """The uniform random policy on the task: mean and std of the return over `episodes`."""
+    enable_compilation_cache()
+    evaluate = make_random_evaluate(load(TASK)[1], episodes)
+    m = jax.device_get(jax.jit(evaluate)(jax.random.PRNGKey(0)))
+    result = {"task": TASK, "episodes": episodes, "mean": float(m["eval/random_return"]),
+              "std": float(m["eval/random_return_std"]),
+              "mean_length": float(m["eval/random_length"]),
+              "blowups": int(m["eval/random_blowups"])}  # fmt: skip
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1) + "\n")
+    print(f"random policy on {TASK}: {result['mean']:.2f} +- {result['std']:.2f} over "
+          f"{episodes} episodes (mean length {result['mean_length']:.1f}) -> {out}")
+    return result
+
+
 def main(args: Args) -> None:
     root = Path(args.results)
     if args.pilot:
@@ -88,8 +114,10 @@ def main(args: Args) -> None:
     if args.arm:
         if args.arm not in ARMS:
             raise SystemExit(f"error: --arm {args.arm!r} is unknown; allowed: {', '.join(ARMS)}")
-        cfg = config(args.study_config, ARMS[args.arm], args.steps)
+        cfg = config(args.study_config, ARMS[args.arm], args.steps, eval_every=10_000)
         run_arm(cfg, args.seeds, root / "study" / args.arm, f"study {args.arm}")
+    if args.random_episodes:
+        random_baseline(args.random_episodes, root / "random.json")
     if args.report:
         report(root)
 

@@ -13,7 +13,7 @@ from flax import struct
 from sirl_jax.agent import losses
 from sirl_jax.agent.config import AgentConfig
 from sirl_jax.agent.math import discount_from_episode_length
-from sirl_jax.agent.networks import init_params
+from sirl_jax.agent.networks import init_params, policy_fn
 from sirl_jax.agent.planner import PlannerModel, PlannerState, make_planner
 from sirl_jax.agent.world_model import make_world_model
 from sirl_jax.types import Batch
@@ -42,7 +42,11 @@ class AgentState:
 
 @dataclasses.dataclass(frozen=True)
 class Agent:
-    """Static agent description plus its pure functions (none of them jitted)."""
+    """Static agent description plus its pure functions (none of them jitted): the seam both
+    learners (`cfg.kind`: TD-MPC2 here, FastTD3 in `fasttd3.py`) present to the train step,
+    evaluation, render and export. `plan` is MPPI for TD-MPC2; FastTD3 has no planner and its
+    `plan` is its actor (noisy unless eval_mode), which evaluation does not run twice
+    (`cfg.plans`)."""
 
     cfg: AgentConfig
     obs_size: int
@@ -54,9 +58,11 @@ class Agent:
     init: Callable  # (key) -> AgentState
     update: Callable  # (AgentState, Batch, r_max [], key) -> (AgentState, metrics)
     sirl_reference: Callable  # (r_max []) -> G [] of the self-imitative weight
-    init_planner: Callable  # (num_envs) -> PlannerState
-    plan: Callable  # (AgentState, PlannerState, obs[E, O], first[E], key, eval_mode)
-    act_policy: Callable  # (AgentState, obs[E, O], key, eval_mode) -> action[E, A]
+    init_planner: Callable  # (num_envs) -> the per-env acting state (MPPI warm start, noise)
+    plan: Callable  # (state, acting state, obs[E, O], first[E], key, eval_mode) -> (a, acting)
+    act_policy: Callable  # (state, obs[E, O], key, eval_mode) -> action[E, A]
+    act: Callable  # (state, acting state, obs, first, key) -> (a[E, A], acting): training's
+    export_policy: Callable  # (state) -> (obs[..., O] -> action[..., A]), the eval-mode policy
 
 
 def _wm_optimizer(cfg: AgentConfig) -> optax.GradientTransformation:
@@ -81,17 +87,9 @@ def polyak(target, online, tau: float):
     return jax.tree_util.tree_map(lambda t, o: (1.0 - tau) * t + tau * o, target, online)
 
 
-def make_agent(
-    cfg: AgentConfig,
-    obs_size: int,
-    action_size: int,
-    episode_length: int,
-    success_bar: float | None = None,
-) -> Agent:
-    """Builds the agent for static sizes; gamma, MPPI iterations and G's source are fixed here.
-
-    success_bar: the task's R_target; required when `cfg.sirl.g_source == "target"`.
-    """
+def check_sizes(cfg: AgentConfig, obs_size: int, action_size: int, episode_length: int,
+                success_bar: float | None) -> None:  # fmt: skip
+    """The checks every learner makes on its static sizes and on G's source."""
     if cfg.sirl.enabled and cfg.sirl.g_source == "target" and success_bar is None:
         raise ValueError(
             "agent.sirl.g_source='target' is invalid for a task without a success bar; "
@@ -104,6 +102,36 @@ def make_agent(
     ):
         if v < 1:
             raise ValueError(f"{name}={v} is invalid; allowed: an int >= 1")
+
+
+def make_sirl_reference(cfg: AgentConfig, success_bar: float | None) -> Callable:
+    """(r_max []) -> G [] of the self-imitative weight: the buffer's R_max, or the success bar
+    (`cfg.sirl.g_source`)."""
+
+    def sirl_reference(r_max: jax.Array) -> jax.Array:
+        if cfg.sirl.g_source == "target":  # NaN only when the term is off and there is no bar
+            return jnp.float32(jnp.nan if success_bar is None else success_bar)
+        return jnp.asarray(r_max, jnp.float32)
+
+    return sirl_reference
+
+
+def make_agent(
+    cfg: AgentConfig,
+    obs_size: int,
+    action_size: int,
+    episode_length: int,
+    success_bar: float | None = None,
+) -> Agent:
+    """Builds the agent for static sizes; gamma, MPPI iterations and G's source are fixed here.
+
+    success_bar: the task's R_target; required when `cfg.sirl.g_source == "target"`.
+    """
+    if cfg.kind == "fasttd3":
+        from sirl_jax.agent.fasttd3 import make_fasttd3
+
+        return make_fasttd3(cfg, obs_size, action_size, episode_length, success_bar)
+    check_sizes(cfg, obs_size, action_size, episode_length, success_bar)
     discount = (
         cfg.discount
         if cfg.discount is not None
@@ -148,11 +176,7 @@ def make_agent(
             scale=jnp.ones((), jnp.float32),
         )
 
-    def sirl_reference(r_max: jax.Array) -> jax.Array:
-        """G of the self-imitative weight: the buffer's R_max, or the success bar (`g_source`)."""
-        if cfg.sirl.g_source == "target":  # NaN only when the term is off and there is no bar
-            return jnp.float32(jnp.nan if success_bar is None else success_bar)
-        return jnp.asarray(r_max, jnp.float32)
+    sirl_reference = make_sirl_reference(cfg, success_bar)
 
     def update(
         state: AgentState, batch: Batch, r_max: jax.Array, key: jax.Array
@@ -220,6 +244,16 @@ def make_agent(
         out = wm.pi(state.params, z, key)
         return out.mean_action if eval_mode else out.action
 
+    def act(state: AgentState, planner_state: PlannerState, obs, first, key):
+        """Training's actions: MPPI, or the policy prior when `cfg.mpc` is False."""
+        if cfg.mpc:
+            return plan(state, planner_state, obs, first, key)
+        return act_policy(state, obs, key), planner_state
+
+    def export_policy(state: AgentState):
+        """obs [..., O] -> tanh(mu) [..., A], the prior's eval-mode action."""
+        return policy_fn(cfg, action_size, state.params)
+
     return Agent(
         cfg=cfg,
         obs_size=obs_size,
@@ -234,4 +268,6 @@ def make_agent(
         init_planner=planner.init,
         plan=plan,
         act_policy=act_policy,
+        act=act,
+        export_policy=export_policy,
     )

@@ -9,6 +9,9 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
+from sirl_jax.agent.checks import check, choice
+from sirl_jax.agent.fasttd3_config import FastTD3Config
+
 
 class ModelArch(NamedTuple):
     """Resolved network widths."""
@@ -36,17 +39,7 @@ RETURN_KINDS = ("undiscounted", "discounted")
 ENTROPY_FORMS = ("scaled", "v1")
 BC_REDUCTIONS = ("mean", "sum")
 RMAX_MODES = ("in_buffer", "all_time")
-
-
-def check(ok: bool, name: str, value: object, allowed: str) -> None:
-    """Raises ValueError `name=value is invalid; allowed: ...` unless `ok` (every config check)."""
-    if not ok:
-        raise ValueError(f"{name}={value!r} is invalid; allowed: {allowed}")
-
-
-def choice(name: str, value: str, allowed: tuple[str, ...]) -> None:
-    """`check` for a field with a fixed set of string values."""
-    check(value in allowed, name, value, f"one of {allowed}")
+KINDS = ("tdmpc2", "fasttd3")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -96,8 +89,16 @@ class SirlConfig:
 
 @dataclasses.dataclass(frozen=True)
 class AgentConfig:
-    """TD-MPC2 agent. Every default is the reference value (spec tdmpc2.md)."""
+    """The agent: TD-MPC2 (every default is the reference value, spec tdmpc2.md) or FastTD3.
 
+    `kind` is the one switch between the learners. Both read `sirl` (the self-imitative term)
+    and share the replay buffer, train step, checkpoints, eval and export; FastTD3's own
+    settings are `fasttd3`, and the TD-MPC2 fields below are unused under it.
+    """
+
+    kind: str = "tdmpc2"
+    """tdmpc2 (world model + MPPI planner) | fasttd3 (deterministic actor, distributional
+    clipped double-Q critic; settings in `fasttd3`)."""
     # architecture (§1)
     model_size: str = "5M"
     """1M | 5M | 19M | 48M | 317M (reference presets) | tiny (tests only, not a reference size)."""
@@ -186,8 +187,15 @@ class AgentConfig:
     termination_coef: float = 1.0
     """Weight of the termination BCE in the world-model loss (used only when episodic)."""
     sirl: SirlConfig = dataclasses.field(default_factory=SirlConfig)
+    fasttd3: FastTD3Config = dataclasses.field(default_factory=FastTD3Config)
+    """FastTD3's settings (used when kind is fasttd3)."""
 
     def __post_init__(self) -> None:
+        choice("kind", self.kind, KINDS)
+        if self.kind == "fasttd3" and self.sirl.enabled:
+            check(self.sirl.bc_form == "mse_mean", "sirl.bc_form", self.sirl.bc_form,
+                  "'mse_mean' with kind='fasttd3' (its actor is deterministic: no likelihood, "
+                  "no sample)")  # fmt: skip
         choice("model_size", self.model_size, tuple(MODEL_PRESETS))
         choice("entropy_form", self.entropy_form, ENTROPY_FORMS)
         for name in ("enc_dim", "mlp_dim", "latent_dim", "num_enc_layers", "num_q"):
@@ -255,6 +263,24 @@ class AgentConfig:
             f"a multiple of simnorm_dim ({self.simnorm_dim})",
         )
         check(arch.num_q >= 2, "num_q", arch.num_q, "an int >= 2 (two heads are drawn)")
+
+    @property
+    def plans(self) -> bool:
+        """The agent acts (and is evaluated) with an MPPI planner besides its policy."""
+        return self.kind == "tdmpc2" and self.mpc
+
+    @property
+    def window(self) -> int:
+        """Transitions per replay sample: TD-MPC2's horizon H, FastTD3's n-step n."""
+        return self.horizon if self.kind == "tdmpc2" else self.fasttd3.n_steps
+
+    @property
+    def sample_size(self) -> int:
+        """Windows per replay sample: TD-MPC2's batch; FastTD3's batch for each of the
+        `policy_frequency` critic updates one `Agent.update` runs."""
+        if self.kind == "tdmpc2":
+            return self.batch_size
+        return self.fasttd3.batch_size * self.fasttd3.policy_frequency
 
     @property
     def arch(self) -> ModelArch:

@@ -121,6 +121,19 @@ def init_params(cfg: AgentConfig, obs_size: int, action_size: int, key: jax.Arra
     return params
 
 
+def policy_fn(cfg: AgentConfig, action_size: int, params: dict):
+    """obs [..., O] -> tanh(mu) [..., A], the prior's mean action (`act_policy`, eval mode),
+    with no random op (what `export` converts to ONNX)."""
+    mods = make_modules(cfg, action_size)
+    enc, pi = {"params": params["encoder"]}, {"params": params["policy"]}
+
+    def policy(obs):
+        mu, _ = jnp.split(mods["policy"].apply(pi, mods["encoder"].apply(enc, obs)), 2, axis=-1)
+        return jnp.tanh(mu)
+
+    return policy
+
+
 def count_params(tree) -> int:
     """Number of scalars in a params pytree (works on jax.eval_shape outputs)."""
     return int(sum(x.size for x in jax.tree_util.tree_leaves(tree)))

@@ -71,7 +71,7 @@ def cost_line(train: Train, state: Any, repeats: int = 3) -> str:
         remaining,
         seed_steps_left=0 if planning else max(train.seed_steps - done, 0),
         num_envs=t.num_envs,
-        utd=t.utd,
+        utd=train.updates_per_step / t.num_envs,
         pretrain_updates_left=0 if planning else train.pretrain_updates,
         act_seconds=t_act,
         update_seconds=t_update,
@@ -80,7 +80,7 @@ def cost_line(train: Train, state: Any, repeats: int = 3) -> str:
     device = jax.devices()[0]
     where = jax.default_backend().upper()
     where += "" if device.platform == "cpu" else f" ({device.device_kind})"
-    what = "plan" if train.config.agent.mpc else "policy"
+    what = "plan" if train.config.agent.plans else "policy"
     return (
         f"{where}: about {format_duration(cost)} of agent compute and "
         f"{format_duration(physics)} of env physics ({t.impl}) for the {remaining:,} steps "

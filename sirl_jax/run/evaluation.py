@@ -91,7 +91,7 @@ def eval_run(run_dir: Path, step: int | None, episodes: int) -> list[dict]:
         jax.random.PRNGKey(config.train.seed), _RANDOM_STREAM))))  # fmt: skip
     runlog.CsvLog(out_dir / "random.csv").append(
         {"env_steps": 0, "episodes": episodes, "task": spec.id, **random_metrics})
-    print(_eval_table(rows, config.agent.mpc))
+    print(_eval_table(rows, config.agent.plans))
     print(f"random policy: return {random_metrics['eval/random_return']:.1f} ± "
           f"{random_metrics['eval/random_return_std']:.1f}, length "
           f"{random_metrics['eval/random_length']:.0f}; rows appended to {out_dir}")  # fmt: skip

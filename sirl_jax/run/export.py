@@ -58,20 +58,6 @@ def nested_params(flat: dict[str, np.ndarray]) -> dict:
     return out
 
 
-def policy_fn(cfg, action_size: int, params: dict):
-    """obs [..., O] -> tanh(mu) [..., A], the prior's mean action (`act_policy`, eval mode)."""
-    from sirl_jax.agent.networks import make_modules
-
-    mods = make_modules(cfg, action_size)
-    enc, pi = {"params": params["encoder"]}, {"params": params["policy"]}
-
-    def policy(obs):
-        mu, _ = jnp.split(mods["policy"].apply(pi, mods["encoder"].apply(enc, obs)), 2, axis=-1)
-        return jnp.tanh(mu)
-
-    return policy
-
-
 def planner_fn(agent, agent_state):
     """(obs [O], prev_mean [H, A], key) -> (action [A], prev_mean [H, A]): `agent.plan` for one
     env in eval mode. `first` is not an input: the warm start of a zero state is zero either
@@ -86,13 +72,33 @@ def planner_fn(agent, agent_state):
     return plan
 
 
-def _check_obs(ckpt: Checkpointer, step: int, env, task: str) -> None:
+# The checkpoint leaves holding the policy's input and output layers, per learner, and how many
+# outputs each action has (TD-MPC2's prior gives mu and log std).
+_POLICY_LEAVES = {
+    "tdmpc2": ("agent_params_encoder_NormedLinear_0_Dense_0_kernel",
+               "agent_params_policy_Dense_0_kernel", 2),
+    "fasttd3": ("agent_params_actor_hidden_0_kernel", "agent_params_actor_out_kernel", 1),
+}  # fmt: skip
+
+
+def exported_policy(cfg, action_size: int, params: dict):
+    """obs [..., O] -> the eval-mode action of the policy in an export's params.npz."""
+    if cfg.kind == "fasttd3":
+        from sirl_jax.agent.fasttd3 import policy_from_params
+
+        return policy_from_params(cfg, action_size, params)
+    from sirl_jax.agent.networks import policy_fn
+
+    return policy_fn(cfg, action_size, params)
+
+
+def _check_obs(ckpt: Checkpointer, step: int, env, task: str, kind: str) -> None:
     shapes = ckpt.leaf_shapes(step, "state")
-    enc = shapes.get("agent_params_encoder_NormedLinear_0_Dense_0_kernel")
-    pi = shapes.get("agent_params_policy_Dense_0_kernel")  # the output layer: 2A (mu, log std)
+    first, last, per_action = _POLICY_LEAVES[kind]
+    enc, pi = shapes.get(first), shapes.get(last)
     if enc is None or pi is None:
-        raise UsageError(f"checkpoint {ckpt.step_dir(step)} holds no agent encoder/policy")
-    obs_in, act_out = enc[0], pi[-1] // 2
+        raise UsageError(f"checkpoint {ckpt.step_dir(step)} holds no {kind} policy")
+    obs_in, act_out = enc[0], pi[-1] // per_action
     if (obs_in, act_out) != (env.observation_size, env.action_size):
         raise UsageError(
             f"task {task} observes {env.observation_size} entries and takes {env.action_size} "
@@ -133,7 +139,7 @@ def export_run(run_dir: Path, step: int | None, out: Path | None, force: bool) -
             raise UsageError(f"output directory {out} exists; pass --force to write over it")
         spec, env = load_task(config.train.task)
         C.env_parts(env, spec.id)  # refuses an env without a contract before any work
-        _check_obs(ckpt, step, env, spec.id)
+        _check_obs(ckpt, step, env, spec.id, config.agent.kind)
         train = make_train(config, env)
         key = jax.random.PRNGKey(config.train.seed)
         abstract = jax.eval_shape(train.init, key).replace(buffer=None)
@@ -144,17 +150,24 @@ def export_run(run_dir: Path, step: int | None, out: Path | None, force: bool) -
     cfg = dataclasses.replace(config.agent, plan_env_chunk=0)
     agent = make_agent(cfg, env.observation_size, env.action_size, env.episode_length,
                        env.success_bar)  # fmt: skip
-    params = jax.device_get(agent_state.params)
+    if cfg.kind == "fasttd3":
+        from sirl_jax.agent.fasttd3 import export_params
+
+        params = jax.device_get(export_params(agent_state))
+    else:
+        params = jax.device_get(agent_state.params)
     np.savez(out / "params.npz", **flat_params(params))
     O, A, H = env.observation_size, env.action_size, cfg.horizon
-    to_onnx(policy_fn(cfg, A, params), [("B", O)], opset=OPSET, input_names=["obs"],
+    to_onnx(exported_policy(cfg, A, params), [("B", O)], opset=OPSET, input_names=["obs"],
             output_names=["action"], return_mode="file",
             output_path=str(out / "policy.onnx"))  # fmt: skip
-    f32 = jnp.float32
-    exported = jax.export.export(jax.jit(planner_fn(agent, agent_state)), platforms=PLATFORMS)(
-        jax.ShapeDtypeStruct((O,), f32), jax.ShapeDtypeStruct((H, A), f32),
-        jax.ShapeDtypeStruct((2,), jnp.uint32))  # fmt: skip
-    (out / "planner.jax").write_bytes(exported.serialize())
+    if cfg.plans:
+        f32 = jnp.float32
+        exported = jax.export.export(jax.jit(planner_fn(agent, agent_state)),
+                                     platforms=PLATFORMS)(
+            jax.ShapeDtypeStruct((O,), f32), jax.ShapeDtypeStruct((H, A), f32),
+            jax.ShapeDtypeStruct((2,), jnp.uint32))  # fmt: skip
+        (out / "planner.jax").write_bytes(exported.serialize())
     C.write_model(env, out / C.MODEL_FILE)
     config_dict = config_to_dict(config)
     runlog.write_json(out / "config.json", config_dict)
@@ -163,18 +176,20 @@ def export_run(run_dir: Path, step: int | None, out: Path | None, force: bool) -
         "policy.onnx": {"sha256": C.sha256_file(out / "policy.onnx"), "converter": "jax2onnx",
                         "opset": OPSET, "inputs": {"obs": ["B", O]},
                         "outputs": {"action": ["B", A]}},
-        "planner.jax": {"sha256": C.sha256_file(out / "planner.jax"), "format": "jax.export",
-                        "platforms": list(PLATFORMS), "mode": "eval",
-                        "inputs": {"obs": [O], "planner_state": [H, A], "key": ["uint32", 2]},
-                        "outputs": {"action": [A], "planner_state": [H, A]},
-                        "initial_state": "zeros"},
         "params.npz": {"sha256": C.sha256_file(out / "params.npz"),
                        "names": "<module>/<flax path>, e.g. encoder/NormedLinear_0/Dense_0/kernel"},
         "config.json": {"sha256": C.sha256_file(out / "config.json")},
     }  # fmt: skip
+    if cfg.plans:
+        contract["files"]["planner.jax"] = {
+            "sha256": C.sha256_file(out / "planner.jax"), "format": "jax.export",
+            "platforms": list(PLATFORMS), "mode": "eval",
+            "inputs": {"obs": [O], "planner_state": [H, A], "key": ["uint32", 2]},
+            "outputs": {"action": [A], "planner_state": [H, A]}, "initial_state": "zeros"}
     C.write_contract(contract, out / "contract.json")
+    files = [f for f in FILES if cfg.plans or f != "planner.jax"]
     print(f"exported {run_dir} env step {step:,} ({spec.id}, obs {O}, action {A}) to {out}: "
-          + ", ".join(FILES))
+          + ", ".join(files))
     return out
 
 

@@ -236,6 +236,19 @@ class RunLog:
             self._wandb.finish()
 
 
+def agent_line(a, iterations: str, sirl: str) -> str:
+    """The run header's agent line, for either learner."""
+    if a.kind == "fasttd3":
+        f = a.fasttd3
+        return (f"agent: FastTD3 (actor {f.actor_hidden_dim}, critic {f.critic_hidden_dim}, "
+                f"{f.num_atoms} atoms on [{f.v_min:g}, {f.v_max:g}]), n-step {f.n_steps}, "
+                f"{f.num_updates} critic updates per step, batch {f.batch_size}, {sirl}")
+    arch = a.arch
+    return (f"agent: {a.model_size} (enc {arch.enc_dim}, mlp {arch.mlp_dim}, latent "
+            f"{arch.latent_dim}, {arch.num_q} Qs), H={a.horizon}, MPPI {iterations} it x "
+            f"{a.num_samples} samples, batch {a.batch_size}, {sirl}")
+
+
 def describe_run(
     config: Config,
     spec: Any,
@@ -254,9 +267,10 @@ def describe_run(
     t, a = config.train, config.agent
     its = iterations
     its_text = f"{its}" if its == a.iterations else f"{its} ({a.iterations} + 2 for A >= 20)"
-    arch = a.arch
-    sirl = (f"TDMPBC beta={a.sirl.beta:g} G={a.sirl.g_source} ({a.sirl.bc_form})"
-            if a.sirl.enabled else "plain TD-MPC2 (no BC term)")  # fmt: skip
+    plain = "plain TD-MPC2" if a.kind == "tdmpc2" else "plain FastTD3"
+    sirl = (f"{'TDMPBC' if a.kind == 'tdmpc2' else 'SIRL'} beta={a.sirl.beta:g} "
+            f"G={a.sirl.g_source} ({a.sirl.bc_form})" if a.sirl.enabled
+            else f"{plain} (no BC term)")  # fmt: skip
     bar = "none" if spec.success_bar is None else f"{spec.success_bar:g}"
     every = lambda n: f"{n:,}" if n else "never"
     fitted = [f"sized for T={spec.episode_length}: " + ", ".join(
@@ -264,9 +278,7 @@ def describe_run(
     return "\n".join([
         f"task {spec.id} (T={spec.episode_length}, success bar {bar}), seed {t.seed}, "
         f"{t.steps:,} env steps, E={t.num_envs} x K={t.chunk_steps} per call, utd {t.utd:g}",
-        f"agent: {a.model_size} (enc {arch.enc_dim}, mlp {arch.mlp_dim}, latent "
-        f"{arch.latent_dim}, {arch.num_q} Qs), H={a.horizon}, MPPI {its_text} it x "
-        f"{a.num_samples} samples, batch {a.batch_size}, {sirl}",
+        agent_line(a, its_text, sirl),
         buffer_line,
         f"run dir {run_dir}: eval every {every(t.eval_every)}, checkpoint every "
         f"{every(t.checkpoint_interval)} (buffer {'saved' if t.save_buffer else 'not saved'}), "

@@ -74,7 +74,7 @@ def shard_envs(train: Train, devices: int, key: jax.Array) -> tuple[Train, Any]:
     try:
         mesh = make_mesh(devices, ENVS)
         shardings = env_shardings(jax.eval_shape(train.init, key), mesh, t.train.num_envs,
-                                  t.agent.batch_size)  # fmt: skip
+                                  t.agent.sample_size)  # fmt: skip
     except ValueError as e:
         raise UsageError(str(e)) from e
     return make_train(t, train.env, constrain_batch=batch_constraint(mesh)), shardings
@@ -131,7 +131,7 @@ class Run:
         self.log.log("eval", env_steps, metrics)
         self.bar.write(f"eval @ {env_steps:,}: "
                        + ", ".join(f"{k} {v:.4g}" for k, v in metrics.items()))  # fmt: skip
-        which = "planner" if self.config.agent.mpc else "policy"
+        which = "planner" if self.config.agent.plans else "policy"
         value = metrics[f"eval/{which}_return"]
         if self.best[0] > 0 and value < 0.5 * self.best[0] and self.collapse is None:
             self.collapse = (f"warning: eval {which} return collapsed to {value:.4g} at env step "

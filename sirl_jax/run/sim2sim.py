@@ -160,11 +160,11 @@ def mjx_episodes(export_dir: Path, contract: dict, policy: str, initial: list, m
     A = env.action_size
     if policy == "prior":
         from sirl_jax.config import Config, config_from_dict
-        from sirl_jax.run.export import nested_params, policy_fn
+        from sirl_jax.run.export import exported_policy, nested_params
 
         config = config_from_dict(Config, json.loads((export_dir / "config.json").read_text()))
         params = nested_params(dict(np.load(export_dir / "params.npz")))
-        prior = policy_fn(config.agent, A, params)
+        prior = exported_policy(config.agent, A, params)
     elif policy == "planner":
         plan, zero = load_planner(export_dir, contract)
     if policy == "random":
@@ -315,6 +315,10 @@ def main_sim2sim(args) -> int:
     if args.export is not None and not Path(args.export).is_dir():
         raise UsageError(f"export directory {args.export} does not exist")
     export = None if args.export is None else Path(args.export)
+    if (args.policy == "planner" and export is not None
+            and not (export / "planner.jax").exists()):  # fmt: skip
+        raise UsageError(f"{export} has no planner.jax (its agent does not plan, e.g. "
+                         "agent.kind='fasttd3'); allowed --policy: prior, random")
     try:
         result = sim2sim(export, args.episodes, args.policy, args.max_steps, args.seed,
                          args.mjx, args.task)  # fmt: skip

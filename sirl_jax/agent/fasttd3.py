@@ -1,0 +1,342 @@
+"""`make_fasttd3`: FastTD3 (Seo et al. 2025) with the TDMPBC self-imitative term, as an `Agent`.
+
+The reference is FastTD3's repository (younggyoseo/FastTD3: `fast_td3/fast_td3.py`,
+`fast_td3/train.py`, `fast_td3/hyperparams.py`). Per `Agent.update` call (one "update group"):
+
+  for i in 0..P-1 (P = policy_frequency), each on its own batch of B transitions:
+    observation stats <- batch's s_0, then its s_n (running mean / var, as FastTD3 normalises
+      both with its training-mode normaliser);
+    critic: both distributional critics regress, by cross-entropy, onto the categorical
+      projection of r^(n) + gamma^n (1 - d) z under the target critics at
+      (s_n, clip(actor(s_n) + clip(eps * policy_noise, +-noise_clip), +-1)), the online actor
+      (FastTD3 has no target actor); with clipped double Q both take the projected
+      distribution of the target critic with the lower mean;
+    after the last critic step: the actor maximises min(Q1, Q2) (mean without CDQ);
+    target critics <- Polyak(tau).
+
+The self-imitative term joins the actor loss as TDMPBC defines it relative to the RL term:
+TDMPBC minimises -Q/S + omega(R) * BC with S TD-MPC2's running Q scale; FastTD3's actor loss is
+-Q, so the term enters as sg(S) * omega(R) * BC (the same loss times S). BC is the mean over
+action dimensions of (actor(s_0) - a_0)^2, a_0 the buffer action (the actor is deterministic).
+With `sirl.enabled=False` or beta = 0 the loss is FastTD3's own, exactly.
+
+Shape letters: B batch, P policy_frequency, N atoms, O observation, A action, E envs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+
+from sirl_jax.agent import losses
+from sirl_jax.agent.agent import Agent, check_sizes, make_sirl_reference, polyak
+from sirl_jax.agent.config import AgentConfig
+from sirl_jax.types import Batch
+
+sg = jax.lax.stop_gradient
+
+
+def _uniform(bound: float):
+    def init(key, shape, dtype=jnp.float32):
+        return jax.random.uniform(key, shape, dtype, -bound, bound)
+
+    return init
+
+
+class TorchDense(nn.Module):
+    """Dense with PyTorch's nn.Linear init: kernel and bias ~ U(+-1/sqrt(fan_in)); with
+    `normal_std`, kernel ~ N(0, normal_std^2) and bias 0 (FastTD3's actor output layer)."""
+
+    features: int
+    normal_std: float | None = None
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        fan_in = x.shape[-1]
+        bound = 1.0 / math.sqrt(fan_in)
+        if self.normal_std is None:
+            k_init, b_init = _uniform(bound), _uniform(bound)
+        else:
+            k_init, b_init = nn.initializers.normal(self.normal_std), nn.initializers.zeros
+        kernel = self.param("kernel", k_init, (fan_in, self.features))
+        bias = self.param("bias", b_init, (self.features,))
+        return x @ kernel + bias
+
+
+class ReluMLP(nn.Module):
+    """Hidden TorchDense + ReLU layers ('hidden_i'), then an output TorchDense ('out')."""
+
+    hidden: Sequence[int]
+    out: int
+    out_normal_std: float | None = None
+    tanh: bool = False
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        for i, width in enumerate(self.hidden):
+            x = jax.nn.relu(TorchDense(width, name=f"hidden_{i}")(x))
+        x = TorchDense(self.out, self.out_normal_std, name="out")(x)
+        return jnp.tanh(x) if self.tanh else x
+
+
+def widths(h: int) -> tuple[int, int, int]:
+    """FastTD3's MLP widths from its hidden_dim: h, h // 2, h // 4."""
+    return h, h // 2, h // 4
+
+
+def project(probs, reward, bootstrap, discount, support, v_min: float, v_max: float):
+    """Categorical (C51) projection of r + bootstrap * discount * z onto `support`.
+
+    Each atom's mass p_i goes to the two support points around its shifted, clipped value b_i
+    (in atom units), in proportion to closeness; an exact hit keeps all of it. This is
+    FastTD3's `projection` (its l == u adjustment gives the same split).
+
+    Args:
+      probs: [B, N] next-state probabilities; reward, bootstrap, discount: [B] (or []).
+      support: [N] atoms linspace(v_min, v_max, N).
+    Returns:
+      [B, N] projected probabilities (rows sum to those of `probs`).
+    """
+    n = support.shape[0]
+    delta = (v_max - v_min) / (n - 1)
+    tz = jnp.reshape(reward, (-1, 1)) + jnp.reshape(bootstrap * discount, (-1, 1)) * support
+    tz = jnp.broadcast_to(jnp.clip(tz, v_min, v_max), probs.shape)
+    b = (tz - v_min) / delta
+    lower = jnp.clip(jnp.floor(b), 0, n - 1)
+    frac = b - lower  # in [0, 1); 0 at an exact hit and at v_max
+    lo_i, hi_i = lower.astype(jnp.int32), jnp.minimum(lower.astype(jnp.int32) + 1, n - 1)
+
+    def row(p, lo, hi, f):
+        return jnp.zeros((n,), p.dtype).at[lo].add(p * (1.0 - f)).at[hi].add(p * f)
+
+    return jax.vmap(row)(probs, lo_i, hi_i, frac)
+
+
+@struct.dataclass
+class ObsNorm:
+    """FastTD3's EmpiricalNormalization: running mean / variance over every batch seen."""
+
+    mean: jax.Array  # [O]
+    var: jax.Array  # [O]
+    count: jax.Array  # [] float32 rows seen
+
+    @classmethod
+    def init(cls, size: int) -> ObsNorm:
+        return cls(jnp.zeros((size,)), jnp.ones((size,)), jnp.zeros(()))
+
+    def update(self, x: jax.Array) -> ObsNorm:
+        """Chan et al.'s parallel update with the batch x [B, O] (population variance)."""
+        n = jnp.float32(x.shape[0])
+        batch_mean, batch_var = jnp.mean(x, axis=0), jnp.var(x, axis=0)
+        total = self.count + n
+        mean = self.mean + (batch_mean - self.mean) * (n / total)
+        m2 = (self.var * self.count + batch_var * n
+              + jnp.square(batch_mean - mean) * (self.count * n / total))  # fmt: skip
+        return ObsNorm(mean, m2 / total, total)
+
+    def __call__(self, x: jax.Array, eps: float) -> jax.Array:
+        return (x - self.mean) / (jnp.sqrt(self.var) + eps)
+
+
+def export_params(state) -> dict:
+    """What `export` writes to params.npz: the networks and the observation statistics."""
+    return {**state.params, "obs_norm": {"mean": state.obs_norm.mean, "var": state.obs_norm.var}}
+
+
+def policy_from_params(cfg: AgentConfig, action_size: int, params: dict):
+    """obs [..., O] -> the actor's eval-mode action [..., A], from `export_params`' dict."""
+    fc = cfg.fasttd3
+    actor = ReluMLP(widths(fc.actor_hidden_dim), action_size, fc.init_scale, tanh=True)
+    norm = params["obs_norm"]
+
+    def policy(obs):
+        if fc.obs_normalization:
+            obs = (obs - norm["mean"]) / (jnp.sqrt(norm["var"]) + fc.obs_norm_eps)
+        return actor.apply({"params": params["actor"]}, obs)
+
+    return policy
+
+
+@struct.dataclass
+class FastTD3State:
+    """params: {'actor', 'critic'} with the two critics stacked on a leading [2] axis;
+    target_critic: Polyak copy of 'critic'; obs_norm: observation statistics; scale: [] the
+    running Q scale S of the self-imitative term."""
+
+    params: dict
+    target_critic: dict
+    actor_opt_state: optax.OptState
+    critic_opt_state: optax.OptState
+    obs_norm: ObsNorm
+    scale: jax.Array
+
+
+@struct.dataclass
+class NoiseState:
+    """Per-env exploration noise std [E, 1], redrawn at each env's first step."""
+
+    std: jax.Array
+
+
+def make_fasttd3(
+    cfg: AgentConfig, obs_size: int, action_size: int, episode_length: int,
+    success_bar: float | None = None,
+) -> Agent:  # fmt: skip
+    """Builds FastTD3 (+ the self-imitative term when `cfg.sirl.enabled`) for static sizes."""
+    check_sizes(cfg, obs_size, action_size, episode_length, success_bar)
+    sirl_reference = make_sirl_reference(cfg, success_bar)
+    fc = cfg.fasttd3
+    A, P, n = action_size, fc.policy_frequency, fc.n_steps
+    actor = ReluMLP(widths(fc.actor_hidden_dim), A, fc.init_scale, tanh=True)
+    critic = ReluMLP(widths(fc.critic_hidden_dim), fc.num_atoms)
+    support = jnp.linspace(fc.v_min, fc.v_max, fc.num_atoms)
+    actor_tx = optax.adamw(fc.actor_lr, weight_decay=fc.weight_decay)
+    critic_tx = optax.adamw(fc.critic_lr, weight_decay=fc.weight_decay)
+    gammas = fc.gamma ** jnp.arange(n, dtype=jnp.float32)
+
+    def normalize(norm: ObsNorm, x):
+        return norm(x, fc.obs_norm_eps) if fc.obs_normalization else x
+
+    def observe(norm: ObsNorm, x):
+        """FastTD3's training-mode normaliser: update the statistics with x, then apply them."""
+        norm = norm.update(x) if fc.obs_normalization else norm
+        return norm, normalize(norm, x)
+
+    def critic_logits(critic_params, obs, action):
+        """[2, B, N] logits of both critics."""
+        x = jnp.concatenate([obs, action], axis=-1)
+        return jax.vmap(lambda p: critic.apply({"params": p}, x))(critic_params)
+
+    def values(logits):
+        return jnp.sum(jax.nn.softmax(logits, axis=-1) * support, axis=-1)
+
+    def init(key: jax.Array) -> FastTD3State:
+        k_actor, k_critic = jax.random.split(key)
+        obs, act = jnp.zeros((1, obs_size)), jnp.zeros((1, obs_size + A))
+        params = {
+            "actor": actor.init(k_actor, obs)["params"],
+            "critic": jax.vmap(lambda k: critic.init(k, act)["params"])(
+                jax.random.split(k_critic, 2)),
+        }  # fmt: skip
+        return FastTD3State(
+            params=params,
+            target_critic=jax.tree_util.tree_map(jnp.copy, params["critic"]),
+            actor_opt_state=actor_tx.init(params["actor"]),
+            critic_opt_state=critic_tx.init(params["critic"]),
+            obs_norm=ObsNorm.init(obs_size),
+            scale=jnp.ones((), jnp.float32),
+        )
+
+    def critic_loss(critic_params, target_critic, actor_params, s0, a0, sn, ret, boot, key):
+        noise = jnp.clip(jax.random.normal(key, a0.shape) * fc.policy_noise,
+                         -fc.noise_clip, fc.noise_clip)  # fmt: skip
+        next_action = jnp.clip(actor.apply({"params": actor_params}, sn) + noise, -1.0, 1.0)
+        target_probs = jax.nn.softmax(critic_logits(target_critic, sn, next_action), axis=-1)
+        proj = jax.vmap(lambda p: project(p, ret, boot, fc.gamma**n, support, fc.v_min,
+                                          fc.v_max))(target_probs)  # fmt: skip
+        proj_values = jnp.sum(proj * support, axis=-1)  # [2, B]
+        if fc.use_cdq:
+            lower = jnp.where((proj_values[0] < proj_values[1])[:, None], proj[0], proj[1])
+            proj = jnp.stack([lower, lower])
+        proj = sg(proj)
+        logp = jax.nn.log_softmax(critic_logits(critic_params, s0, a0), axis=-1)
+        ce = -jnp.sum(proj * logp, axis=-1)  # [2, B]
+        loss = jnp.sum(jnp.mean(ce, axis=1))  # qf1_loss + qf2_loss
+        return loss, {"qf_loss": loss, "qf_target_mean": jnp.mean(proj_values[0])}
+
+    def actor_loss(actor_params, critic_params, scale, s0, a0, episode_return, return_ref):
+        action = actor.apply({"params": actor_params}, s0)
+        q = values(critic_logits(critic_params, s0, action))  # [2, B]
+        q = jnp.min(q, axis=0) if fc.use_cdq else jnp.mean(q, axis=0)
+        rl = -jnp.mean(q)
+        new_scale = losses.update_scale(scale, sg(q), fc.sirl_scale_tau)
+        metrics = {"actor_loss": rl, "pi_q": jnp.mean(q), "pi_scale": new_scale,
+                   "sirl/clamped_fraction": losses.clamped_fraction(a0, cfg.sirl.action_clip)}
+        if not cfg.sirl.enabled:
+            zero = jnp.zeros(())
+            return rl, (new_scale, {**metrics, "sirl_loss": zero, "sirl_weight_mean": zero,
+                                    "pi_loss": rl})  # fmt: skip
+        omega = losses.sirl_weight(episode_return, return_ref, cfg.sirl)
+        bc = jnp.mean(jnp.square(action - a0), axis=-1)  # [B]
+        sirl_loss = sg(new_scale) * jnp.mean(omega * bc)
+        loss = rl + sirl_loss
+        return loss, (new_scale, {**metrics, "sirl_loss": sirl_loss,
+                                  "sirl_weight_mean": jnp.mean(omega), "pi_loss": loss})
+
+    def split_groups(batch: Batch) -> list[Batch]:
+        """The P batches of B windows of one group ([.., P * B, ..] -> P x [.., B, ..])."""
+
+        def part(x, i):
+            return jnp.split(x, P, axis=0 if x.ndim == 1 else 1)[i]
+
+        return [jax.tree_util.tree_map(lambda x, i=i: part(x, i), batch) for i in range(P)]
+
+    def update(state: FastTD3State, batch: Batch, r_max: jax.Array, key: jax.Array):
+        """One update group: P critic updates (each on B transitions, each followed by the
+        target's Polyak step) and one actor update after the last (module docstring)."""
+        params, target, norm = state.params, state.target_critic, state.obs_norm
+        critic_opt, sums = state.critic_opt_state, {}
+        keys = jax.random.split(key, P)
+        for i, b in enumerate(split_groups(batch)):
+            norm, s0 = observe(norm, b.obs[0])
+            norm, sn = observe(norm, b.obs[n])
+            alive = jnp.cumprod(1.0 - b.terminated, axis=0)  # [n, B] after step k
+            ret = jnp.sum(gammas[:, None] * jnp.concatenate(
+                [jnp.ones_like(alive[:1]), alive[:-1]]) * b.reward, axis=0)  # fmt: skip
+            (_, m), grads = jax.value_and_grad(critic_loss, has_aux=True)(
+                params["critic"], target, params["actor"], s0, b.action[0], sn, ret, alive[-1],
+                keys[i])  # fmt: skip
+            upd, critic_opt = critic_tx.update(grads, critic_opt, params["critic"])
+            params = {**params, "critic": optax.apply_updates(params["critic"], upd)}
+            target = polyak(target, params["critic"], fc.tau)
+            m["critic_grad_norm"] = optax.tree.norm(grads)
+            sums = {k: sums.get(k, 0.0) + v / P for k, v in m.items()}
+        (_, (scale, pi_m)), grads = jax.value_and_grad(actor_loss, has_aux=True)(
+            params["actor"], params["critic"], state.scale, s0, b.action[0], b.episode_return,
+            sirl_reference(r_max))  # fmt: skip
+        upd, actor_opt = actor_tx.update(grads, state.actor_opt_state, params["actor"])
+        params = {**params, "actor": optax.apply_updates(params["actor"], upd)}
+        new_state = FastTD3State(params, target, actor_opt, critic_opt, norm, scale)
+        return new_state, {**sums, **pi_m, "actor_grad_norm": optax.tree.norm(grads)}
+
+    def mean_action(state: FastTD3State, obs):
+        return actor.apply({"params": state.params["actor"]}, normalize(state.obs_norm, obs))
+
+    def act(state: FastTD3State, noise: NoiseState, obs, first, key):
+        """The actor plus Gaussian noise of each env's std, redrawn at its first step."""
+        k_std, k_eps = jax.random.split(key)
+        fresh = jax.random.uniform(k_std, noise.std.shape, minval=fc.std_min, maxval=fc.std_max)
+        std = jnp.where(first[:, None], fresh, noise.std)
+        mean = mean_action(state, obs)
+        action = mean + jax.random.normal(k_eps, mean.shape) * std
+        return jnp.clip(action, -1.0, 1.0), NoiseState(std)
+
+    def plan(state, noise, obs, first, key, eval_mode: bool = False):
+        if eval_mode:
+            return mean_action(state, obs), noise
+        return act(state, noise, obs, first, key)
+
+    def act_policy(state, obs, key, eval_mode: bool = False):
+        if eval_mode:
+            return mean_action(state, obs)
+        first = jnp.ones(obs.shape[:1], bool)
+        return act(state, init_noise(obs.shape[0]), obs, first, key)[0]
+
+    def init_noise(num_envs: int) -> NoiseState:
+        return NoiseState(jnp.zeros((num_envs, 1), jnp.float32))
+
+    def export_policy(state: FastTD3State):
+        """obs [..., O] -> actor(normalised obs) [..., A], the eval-mode action."""
+        return policy_from_params(cfg, A, export_params(state))
+
+    return Agent(cfg=cfg, obs_size=obs_size, action_size=A, episode_length=episode_length,
+                 success_bar=success_bar, discount=fc.gamma, iterations=0, init=init,
+                 update=update, sirl_reference=sirl_reference, init_planner=init_noise,
+                 plan=plan, act_policy=act_policy, act=act,
+                 export_policy=export_policy)  # fmt: skip
