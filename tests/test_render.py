@@ -139,3 +139,39 @@ def test_tracking_camera_keeps_robot_and_task_objects_in_frame():
     for _ in range(60):  # the tracking camera catches up with the moved robot
         cam = track.view(model, data)
     assert _in_view(cam, data.xpos[what.bodies], 45.0, 640 / 480)
+
+
+@pytest.mark.timeout(300)
+def test_render_model_is_render_only():
+    """The dressed model draws the env's states (same bodies, joints, kinematics) and carries
+    the look; the env's simulated model is not changed by building it, array for array."""
+    import mujoco
+
+    from sirl_jax.envs import load
+    from sirl_jax.run import scene_look
+
+    _, env = load("h1hand-bookshelf_simple-v0")
+    physics = env.mj_model
+    arrays = {k: np.array(getattr(physics, k)) for k in dir(physics)
+              if isinstance(getattr(physics, k, None), np.ndarray)}  # fmt: skip
+    model = scene_look.render_model(env)
+    assert model is not physics and scene_look.same_layout(model, physics)
+    for k, v in arrays.items():
+        np.testing.assert_array_equal(getattr(physics, k), v, err_msg=k)
+    added = np.flatnonzero(model.geom_group == scene_look.VISUAL_GROUP)
+    assert len(added) == model.ngeom - physics.ngeom > 10
+    assert not model.geom_contype[added].any() and not model.geom_conaffinity[added].any()
+    np.testing.assert_allclose(model.body_mass, physics.body_mass)
+    static = physics.body_weldid[physics.geom_bodyid] == 0
+    shelves = np.flatnonzero(static & (physics.geom_group == 3))
+    own = model.geom_group[model.geom_group != scene_look.VISUAL_GROUP]  # physics' geom order
+    assert shelves.size and np.all(own[shelves] == 1)  # drawn by default
+    assert model.ntex >= 2 and model.nmat > physics.nmat and model.nlight > physics.nlight
+    data_p, data_r = mujoco.MjData(physics), mujoco.MjData(model)
+    for d, m in ((data_p, physics), (data_r, model)):
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        d.qpos[7:] += 0.1
+        mujoco.mj_kinematics(m, d)
+    np.testing.assert_allclose(data_r.xpos, data_p.xpos, atol=1e-12)
+    pendulum = load("pendulum")[1]
+    assert scene_look.render_model(pendulum) is pendulum.mj_model  # no H1: drawn as it is

@@ -3,10 +3,12 @@
 `track` (default) follows the robot and the task's objects: each frame it frames the bounding
 box of the points of interest (every robot body, every moving task body: free objects and
 mocap goal markers, and the static fixtures near the robot's start: tables, shelves, the
-kitchen) from a fixed direction, at the distance that fits the box in the field of view.
-Centre and distance are smoothed over frames, widening faster than narrowing, so the camera
-neither shakes nor cuts an object off for long. Points farther than `REACH` from the robot's
-root are left out (an object thrown away does not shrink the robot to a speck).
+kitchen) at the distance that fits the box in the field of view, from the front right; with
+a large fixture near, from the azimuth (of `AROUND`) from which the fewest robot bodies are
+hidden behind a fixture. Centre and distance are smoothed over frames, widening faster than
+narrowing, so the camera neither shakes nor cuts an object off for long. Points farther than
+`REACH` from the robot's root are left out (an object thrown away does not shrink the robot
+to a speck).
 
 `side`, `front`, `back` and `top` are fixed for an episode: they frame everything the episode's
 points of interest covered, seen from that side (the robot faces +x at reset). A camera the
@@ -30,6 +32,12 @@ REACH = 3.0
 NEAR = 2.0
 """Static fixtures within this distance (m) of the robot's root at the first frame are framed."""
 MIN_DISTANCE = 1.2
+AROUND = (45.0, -45.0, 90.0, -90.0, 135.0, -135.0, 0.0, 180.0)
+"""`track` with a large fixture near the robot (a table, a shelf, the kitchen: bounding radius
+over `LARGE_FIXTURE` m) looks from the first of these azimuths (over the right shoulder first)
+from which the fewest robot bodies are hidden behind a fixture, at `AROUND_ELEVATION`."""
+AROUND_ELEVATION = -25.0
+LARGE_FIXTURE = 0.25
 SMOOTH_WIDEN, SMOOTH_NARROW = 0.25, 0.04  # per-frame blend towards the new framing
 
 
@@ -134,6 +142,12 @@ class Camera:
         pose(0)
         self.fixtures = fixtures_near(model, data, self.what)
         self.state = None
+        if self.name == "track":
+            large = self.fixtures.size and model.geom_rbound[self.fixtures].max() > LARGE_FIXTURE
+            self.cam.azimuth, self.cam.elevation = VIEWS["track"]
+            if large:
+                self.cam.azimuth = self._clearest_azimuth(model, data)
+                self.cam.elevation = AROUND_ELEVATION
         if self.name == "track" or self.name not in VIEWS:
             return
         low, high = box(model, data, self.what, self.fixtures)
@@ -143,6 +157,28 @@ class Camera:
             low, high = np.minimum(low, lo), np.maximum(high, hi)
         self.state = fit(low, high, self.fovy, self.aspect)
         self._apply()
+
+    def _clearest_azimuth(self, model, data) -> float:
+        """Of `AROUND`, the first azimuth with the fewest robot bodies behind a fixture (rays
+        from the camera to each body, against the world-welded geoms only)."""
+        import mujoco
+
+        lookat, distance = fit(*box(model, data, self.what, self.fixtures), self.fovy,
+                               self.aspect)  # fmt: skip
+        el = math.radians(AROUND_ELEVATION)
+        geomid = np.zeros(1, np.int32)
+        best = (math.inf, AROUND[0])
+        for az in AROUND:
+            a = math.radians(az)
+            forward = np.array([math.cos(el) * math.cos(a), math.cos(el) * math.sin(a),
+                                math.sin(el)])  # fmt: skip
+            eye = lookat - distance * forward
+            hidden = 0
+            for target in data.xpos[self.what.bodies]:
+                hit = mujoco.mj_ray(model, data, eye, target - eye, None, 1, -1, geomid)
+                hidden += 0 <= hit < 0.98 and model.body_weldid[model.geom_bodyid[geomid[0]]] == 0
+            best = min(best, (hidden, az), key=lambda x: x[0])
+        return best[1]
 
     def view(self, model, data):
         """The `MjvCamera` for this frame (the tracking camera moves; the others do not)."""

@@ -2,11 +2,13 @@
 
 The rollout (planner, policy prior, or uniform random actions) runs as one jitted `lax.scan`
 over N parallel episodes and returns the physics state of every step. Each state's qpos and
-qvel are copied into a `mujoco.MjData` of the env's own scene model (`Env.mj_model`, obstacles
-included), forwarded, and drawn by `mujoco.Renderer` from `--camera` (`camera.py`; by default
-one that tracks the robot and the task's objects). Frames go to imageio's ffmpeg writer at the
-control rate (50 fps for the H1 tasks), episode after episode, with the step and the return
-so far drawn on each.
+qvel are copied into a `mujoco.MjData` of a render-only rebuild of the env's scene
+(`scene_look.render_model`: the same bodies and joints as `Env.mj_model`, obstacles included,
+plus visual housings, sky, floor and materials; the simulated model is never changed),
+forwarded, and drawn by `mujoco.Renderer` from `--camera` (`camera.py`; by default one that
+tracks the robot and the task's objects). Frames go to imageio's ffmpeg writer at the control
+rate (50 fps for the H1 tasks), episode after episode, with the step and the return so far
+drawn on each.
 
 Headless OpenGL is chosen before MuJoCo is imported (`select_gl`): EGL where an NVIDIA GPU is
 visible, OSMesa otherwise, unless MUJOCO_GL is set. A missing library is a one-line error naming
@@ -23,6 +25,7 @@ from typing import Any
 
 from sirl_jax.run.camera import Camera, check_camera
 from sirl_jax.run.errors import UsageError
+from sirl_jax.run.scene_look import render_model, scene_option
 
 _GL_LIBS = {
     "osmesa": ("OSMesa", "libosmesa6"),
@@ -128,7 +131,8 @@ def write_video(env, physics, reward, done, out: Path, fps: int, width: int, hei
     import mujoco
     import numpy as np
 
-    model = env.mj_model
+    model = render_model(env)
+    option = scene_option()
     data = mujoco.MjData(model)
     qpos, qvel = np.asarray(physics.qpos), np.asarray(physics.qvel)
     mocap = None
@@ -160,7 +164,7 @@ def write_video(env, physics, reward, done, out: Path, fps: int, width: int, hei
                 for t in range(length):
                     extra = (mocap[0][t, ep], mocap[1][t, ep]) if mocap else ()
                     copy_state(model, data, qpos[t, ep], qvel[t, ep], *extra)
-                    renderer.update_scene(data, view.view(model, data))
+                    renderer.update_scene(data, view.view(model, data), option)
                     if not shadows:
                         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
                         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
