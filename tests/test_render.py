@@ -67,10 +67,17 @@ def test_random_clip_is_written_headless(tmp_path):
     assert len({f.tobytes() for f in frames}) == 24
 
 
-def test_render_refuses_bad_input(capsys, monkeypatch):
+def test_render_refuses_bad_input(capsys, monkeypatch, tmp_path):
+    import json
+
+    from sirl_jax.config import config_to_dict
+    from sirl_jax.presets import get_preset
     from sirl_jax.run import cli, render
 
     monkeypatch.setattr(render, "select_gl", lambda: "osmesa")  # no change to this process
+    untrained = tmp_path / "run"
+    untrained.mkdir()
+    (untrained / "config.json").write_text(json.dumps(config_to_dict(get_preset("smoke"))))
 
     for argv, needle in (
         (["render"], "give a RUN_DIR, or --random with --task NAME"),
@@ -78,6 +85,7 @@ def test_render_refuses_bad_input(capsys, monkeypatch):
         (["render", "--random", "--task", "pendulum", "--width", "0"], "--width=0 is invalid"),
         (["render", "--random", "--task", "pendulum", "--camera", "nope"],
          "--camera 'nope' is unknown; allowed: track, side, front, back, top"),
+        (["render", str(untrained)], "has no complete checkpoint; render needs a run with one"),
     ):
         assert cli.main(argv) == 2, argv
         err = capsys.readouterr().err.strip()

@@ -14,6 +14,7 @@ import pytest
 from sirl_jax.config import config_to_dict
 from sirl_jax.presets import get_preset
 from sirl_jax.run import cli, report, runlog
+from sirl_jax.run.checkpoint import CHECKSUMS
 
 STEPS = (100, 200, 300, 400)
 
@@ -46,16 +47,10 @@ def _write_run(root: Path, checkpoint: bool = True, metrics: bool = True) -> Pat
     _jsonl(run / "eval.jsonl", rows)
     if checkpoint:
         (run / "checkpoints" / "400").mkdir(parents=True)
-        (run / "checkpoints" / "400" / report.CHECKSUMS).write_text("{}")
+        (run / "checkpoints" / "400" / CHECKSUMS).write_text("{}")
         (run / "checkpoints" / "200.orbax-checkpoint-tmp-1").mkdir()  # unfinished: not listed
     (run / "videos" / "400-planner.mp4").write_bytes(b"\x00\x00\x00\x18ftypmp42 fake video")
     return run
-
-
-def test_checksum_name_is_the_checkpointers():
-    from sirl_jax.run import checkpoint
-
-    assert report.CHECKSUMS == checkpoint.CHECKSUMS
 
 
 def test_facts_are_read_from_the_run_dir(tmp_path):

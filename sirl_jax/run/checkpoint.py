@@ -123,6 +123,15 @@ def _abstract_leaf(x: Any) -> jax.ShapeDtypeStruct:
     return jax.ShapeDtypeStruct(np.shape(x), x.dtype, sharding=sharding)
 
 
+def complete_steps(directory: Path) -> list[int]:
+    """Steps of the complete checkpoints under `directory` (a `<step>/` holding the checksum
+    file, written last), ascending; read from the directory alone, nothing created."""
+    if not directory.is_dir():
+        return []
+    return sorted(int(p.name) for p in directory.iterdir()
+                  if p.name.isdigit() and (p / CHECKSUMS).is_file())  # fmt: skip
+
+
 class Checkpointer:
     """Saves and restores named pytrees under `directory`, keeping the newest `max_to_keep`.
 

@@ -210,7 +210,7 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
     import jax
 
     from sirl_jax.run import runlog
-    from sirl_jax.run.checkpoint import Checkpointer
+    from sirl_jax.run.checkpoint import Checkpointer, complete_steps
     from sirl_jax.run.runner import build, eval_key, load_task
     from sirl_jax.run.states import restore_state
 
@@ -231,6 +231,9 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
         spec, train = build(config)
         env, agent = train.env, train.agent
         _check_scene(spec, env, camera)
+        if not complete_steps(run_dir / "checkpoints"):
+            raise UsageError(f"{run_dir} has no complete checkpoint; render needs a run with "
+                             "one, or --random --task NAME (no run)")  # fmt: skip
         ckpt = Checkpointer(run_dir / "checkpoints")
         try:
             state, step = restore_state(ckpt, train.init, jax.random.PRNGKey(config.train.seed),

@@ -28,7 +28,6 @@ from sirl_jax.run.progress import format_duration
 
 NEEDS = ("report needs a run directory written by `train`: config.json, metrics.jsonl and "
          "at least one complete checkpoint in checkpoints/")  # fmt: skip
-CHECKSUMS = "sirl_checksums.json"  # written last into a complete checkpoint (checkpoint.py)
 VIDEO_LIMIT = 64 << 20
 """Videos larger than this (bytes) are named, not embedded."""
 POLICIES = (("planner", "planner (MPPI)"), ("policy", "policy prior"))
@@ -59,13 +58,10 @@ class Report:
 
 
 def checkpoint_steps(run_dir: Path) -> list[int]:
-    """Env steps of the complete checkpoints (a `<step>/` holding the checksum file), ascending;
-    read from the directory alone (no checkpoint library, nothing created)."""
-    root = run_dir / "checkpoints"
-    if not root.is_dir():
-        return []
-    return sorted(int(p.name) for p in root.iterdir()
-                  if p.name.isdigit() and (p / CHECKSUMS).is_file())  # fmt: skip
+    """Env steps of the run's complete checkpoints, ascending (`checkpoint.complete_steps`)."""
+    from sirl_jax.run.checkpoint import complete_steps
+
+    return complete_steps(run_dir / "checkpoints")
 
 
 def _number(value) -> float:
