@@ -183,3 +183,25 @@ def test_render_model_is_render_only():
     np.testing.assert_allclose(data_r.xpos, data_p.xpos, atol=1e-12)
     pendulum = load("pendulum")[1]
     assert scene_look.render_model(pendulum) is pendulum.mj_model  # no H1: drawn as it is
+
+
+def test_goal_markers_come_from_the_task_state_of_the_named_tasks():
+    import mujoco
+    from types import SimpleNamespace
+
+    from sirl_jax.run import markers
+
+    def env(name):
+        return SimpleNamespace(task=SimpleNamespace(name=name))
+
+    np.testing.assert_array_equal(markers.goal_points(env("reach"), np.array([1.0, 2, 3])),
+                                  [[1.0, 2, 3]])  # fmt: skip
+    shelf = {"goals": np.arange(18.0).reshape(6, 3), "index": np.int32(2), "order": None}
+    np.testing.assert_array_equal(markers.goal_points(env("bookshelf_simple"), shelf), [[6, 7, 8]])
+    # window's [3] state is the head at reset, not a goal; tasks without a table entry draw none
+    assert markers.goal_points(env("window"), np.zeros(3)).shape == (0, 3)
+    assert markers.goal_points(SimpleNamespace(), None).shape == (0, 3)
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
+    scene = mujoco.MjvScene(model, maxgeom=2)
+    assert markers.add_markers(scene, np.zeros((3, 3))) == 2 and scene.ngeom == 2
+    np.testing.assert_allclose(scene.geoms[0].size, [markers.GOAL_RADIUS] * 3)

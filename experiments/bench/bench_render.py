@@ -43,7 +43,7 @@ def main(args: Args) -> None:
     def act(s, aux, k):
         return jax.random.uniform(k, (1, env.action_size), minval=-1.0, maxval=1.0), aux
 
-    physics, reward, done = jax.device_get(jax.jit(
+    physics, reward, done, _ = jax.device_get(jax.jit(
         lambda k: rollout_states(env, act, None, 1, k, args.frames))(jax.random.PRNGKey(0)))
     done = np.zeros_like(done)  # draw every step, even past a fall
     written = {}

@@ -180,11 +180,15 @@ class Camera:
             best = min(best, (hidden, az), key=lambda x: x[0])
         return best[1]
 
-    def view(self, model, data):
-        """The `MjvCamera` for this frame (the tracking camera moves; the others do not)."""
+    def view(self, model, data, extra: np.ndarray | None = None):
+        """The `MjvCamera` for this frame (the tracking camera moves; the others do not);
+        `extra` [M, 3]: more points the tracking camera keeps in frame (goal markers)."""
         if self.name == "track":
-            lookat, distance = fit(*box(model, data, self.what, self.fixtures), self.fovy,
-                                   self.aspect)  # fmt: skip
+            low, high = box(model, data, self.what, self.fixtures)
+            if extra is not None and len(extra):
+                low = np.minimum(low, extra.min(axis=0) - 0.1)
+                high = np.maximum(high, extra.max(axis=0) + 0.1)
+            lookat, distance = fit(low, high, self.fovy, self.aspect)
             if self.state is None:
                 self.state = (lookat, distance)
             else:

@@ -25,6 +25,7 @@ from typing import Any
 
 from sirl_jax.run.camera import Camera, check_camera
 from sirl_jax.run.errors import UsageError
+from sirl_jax.run.markers import add_markers, goal_points
 from sirl_jax.run.scene_look import render_model, scene_option
 
 _GL_LIBS = {
@@ -75,7 +76,7 @@ def rollout_states(env, act, aux0, num_episodes: int, key, steps: int):
     """Runs N episodes for `steps` control steps under `act(env_state, aux, key)`.
 
     Returns (physics [steps, N, ...] of the state each step starts from, reward [steps, N],
-    done [steps, N]) as device arrays; jit the call.
+    done [steps, N], task state [steps, N, ...] of the same states) as device arrays; jit it.
     """
     import jax
 
@@ -89,7 +90,7 @@ def rollout_states(env, act, aux0, num_episodes: int, key, steps: int):
         action, aux = act(state, aux, k)
         nxt = vec.step(state, action)
         return (nxt, aux), (env.mjx_data(state.physics), nxt.reward,
-                            nxt.terminated | nxt.truncated)  # fmt: skip
+                            nxt.terminated | nxt.truncated, state.task)  # fmt: skip
 
     _, out = jax.lax.scan(body, (vec.reset(key_reset), aux0), jax.random.split(key_run, steps))
     return out
@@ -118,16 +119,18 @@ def _caption(frame, text: str):
 
 
 def write_video(env, physics, reward, done, out: Path, fps: int, width: int, height: int,
-                title: str, shadows: bool = True,
-                camera: str = "track") -> dict[str, Any]:  # fmt: skip
+                title: str, shadows: bool = True, camera: str = "track",
+                task_state: Any = None) -> dict[str, Any]:  # fmt: skip
     """Draws every episode's frames (up to its first end) into `out`; returns a summary.
 
-    camera: `camera.VIEWS` or one of the model's cameras (`camera.Camera`).
+    camera: `camera.VIEWS` or one of the model's cameras (`camera.Camera`). task_state: the
+    task state of every step (leaves [steps, N, ...]); its goals are drawn (`markers.py`).
 
     shadows=False also drops reflections: about 3.4x faster on a software rasteriser (OSMesa,
     h1hand-hurdle at 640x480: 22 instead of 6.5 frames/s drawn).
     """
     import imageio.v2 as imageio
+    import jax
     import mujoco
     import numpy as np
 
@@ -164,7 +167,10 @@ def write_video(env, physics, reward, done, out: Path, fps: int, width: int, hei
                 for t in range(length):
                     extra = (mocap[0][t, ep], mocap[1][t, ep]) if mocap else ()
                     copy_state(model, data, qpos[t, ep], qvel[t, ep], *extra)
-                    renderer.update_scene(data, view.view(model, data), option)
+                    goals = goal_points(env, None if task_state is None else jax.tree.map(
+                        lambda x, t=t, ep=ep: x[t, ep], task_state))  # fmt: skip
+                    renderer.update_scene(data, view.view(model, data, goals), option)
+                    add_markers(renderer.scene, goals)
                     if not shadows:
                         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
                         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
@@ -256,11 +262,11 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
             return agent.act_policy(agent_state, s.obs, k, True), aux
         aux0 = None
     key = eval_key(seed, step or 0)
-    physics, reward, done = jax.device_get(jax.jit(
+    physics, reward, done, task_state = jax.device_get(jax.jit(
         lambda k: rollout_states(env, act, aux0, episodes, k, steps))(key))  # fmt: skip
     if out is None:
         out = (Path(f"{spec.id}-{policy}.mp4") if run_dir is None
                else run_dir / "videos" / f"{step}-{policy}.mp4")  # fmt: skip
     fps = max(1, round(1.0 / env.control_dt))
     return write_video(env, physics, reward, done, out, fps, width, height,
-                       f"{spec.id} {policy}", shadows, camera)  # fmt: skip
+                       f"{spec.id} {policy}", shadows, camera, task_state)  # fmt: skip

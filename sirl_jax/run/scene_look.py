@@ -5,10 +5,11 @@
 HumanoidBench's headlight, a fill light, H1 colours (graphite links, silver covers), visual
 housings over the fitted capsules (pelvis, chest, head and neck, thigh and shin covers, knee
 caps, soles; `VISUAL_GROUP`, contype = conaffinity = 0, no mass), lighter Shadow-hand
-fingers, and the static fixtures (tables, shelves, the kitchen: colliders in group 3, which
-MuJoCo hides) shown in a wood material. The env's own model, the one MJX simulates, is not
-touched: the render model is a second compiled model whose bodies, joints and mocap bodies
-are the same (checked: `same_layout`), so a recorded qpos draws as it was simulated.
+fingers, the static fixtures (tables, shelves, the kitchen: colliders in group 3, which
+MuJoCo hides) in a wood material, and the free objects that have only such colliders (push's
+box, the books, the kitchen's doors) in group 1. The env's own model, the one MJX simulates,
+is not touched: the render model is a second compiled model whose bodies, joints and mocap
+bodies are the same (checked: `same_layout`), so a recorded qpos draws as it was simulated.
 
 Shapes and sizes are our own, placed over our model's link frames (docs/robot.md); no
 third-party mesh is used. A task without an H1 (`pendulum`) is drawn from its own model with
@@ -26,6 +27,7 @@ FIXTURE_GROUP = 1
 
 _GRAPHITE, _SILVER, _FACE = (0.11, 0.11, 0.12, 1), (0.62, 0.64, 0.67, 1), (0.02, 0.02, 0.03, 1)
 _RUBBER, _HAND = (0.2, 0.2, 0.2, 1), (0.30, 0.31, 0.33, 1)
+_OBJECT = (0.85, 0.35, 0.2, 1)
 
 # (body, geom type, size, pos, material): housings in the body's frame (metres). The frames
 # are our model's (assets/h1_shadow/h1_shadow.xml); the sizes follow its fitted capsules.
@@ -120,8 +122,28 @@ def dress(spec, model) -> None:
             geom.material, geom.rgba = "h1_hand", _HAND
         elif model.geom_group[i] == 2 and model.geom_contype[i] | model.geom_conaffinity[i]:
             geom.material, geom.rgba = "h1_graphite", _GRAPHITE
+    for i in _unseen_object_geoms(model):
+        geoms[i].group = FIXTURE_GROUP
+        if np.allclose(model.geom_rgba[i], (0.5, 0.5, 0.5, 1)):
+            geoms[i].rgba = _OBJECT
     names = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(model.nbody)}
     _housings(spec, names)
+
+
+def _unseen_object_geoms(model) -> np.ndarray:
+    """Geoms of moving task bodies (not the robot) that have no geom in a drawn group (0-2):
+    their colliders (group 3, hidden by MuJoCo) are all there is to show (push's box)."""
+    import mujoco
+
+    pelvis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
+    out = []
+    for body in range(1, model.nbody):
+        if model.body_rootid[body] == model.body_rootid[pelvis] or not model.body_jntnum[body]:
+            continue
+        own = np.flatnonzero(model.geom_bodyid == body)
+        if own.size and np.all(model.geom_group[own] >= 3):
+            out += own.tolist()
+    return np.array(out, int)
 
 
 def same_layout(a, b) -> bool:
