@@ -20,7 +20,7 @@ from typing import Any
 
 from sirl_jax.agent.config import AgentConfig, SirlConfig
 from sirl_jax.agent.config import check as _check
-from sirl_jax.envs.hb_compat import EXACT, check_hb_compat
+from sirl_jax.hb_compat import EXACT, check_hb_compat
 
 
 @dataclasses.dataclass(frozen=True)

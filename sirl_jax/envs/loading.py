@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 
 from sirl_jax.envs.base import Env
-from sirl_jax.envs.hb_compat import EXACT, check_hb_compat
+from sirl_jax.hb_compat import EXACT, check_hb_compat
 from sirl_jax.envs.physics import Physics, check_impl
 from sirl_jax.envs.playground_adapter import PREFIXES, register_playground_task
 from sirl_jax.envs.registry import TASKS, TaskSpec
@@ -60,7 +60,7 @@ def load(
 
     physics: the MJX backend (None: MJX-JAX); impl="warp" is checked before anything is built.
     hb_compat: HumanoidBench's quirks, "exact" (reproduced) or "fixed" (corrected)
-      (`sirl_jax/envs/hb_compat.py`); checked for every task, used by HumanoidBench's tasks.
+      (`sirl_jax/hb_compat.py`); checked for every task, used by HumanoidBench's tasks.
     """
     check_hb_compat(hb_compat)
     if physics is not None:

@@ -52,24 +52,7 @@ def select_gl(environ: dict | None = None) -> str:
             )
     env.setdefault("MUJOCO_GL", backend)
     env.setdefault("PYOPENGL_PLATFORM", backend)
-    if environ is None:
-        _rebind_gl_context(env["MUJOCO_GL"])
     return backend
-
-
-def _rebind_gl_context(backend: str) -> None:
-    """When `mujoco` was imported before `select_gl` (an import chain pulled it in), it bound
-    its renderer to GLFW, which needs a display; point it at the headless backend's context.
-    PyOpenGL, which reads PYOPENGL_PLATFORM at its first import, is only imported here."""
-    import importlib
-    import sys
-
-    if backend not in _GL_LIBS:
-        return
-    for name in ("mujoco.rendering.classic.gl_context", "mujoco.gl_context"):
-        module = sys.modules.get(name)
-        if module is not None:
-            module.GLContext = importlib.import_module(f"mujoco.{backend}").GLContext
 
 
 def rollout_states(env, act, aux0, num_episodes: int, key, steps: int):

@@ -20,7 +20,7 @@ import jax
 from sirl_jax.config import Config, config_to_dict
 from sirl_jax.envs import load
 from sirl_jax.envs import spec as registered_spec
-from sirl_jax.envs.hb_compat import EXACT
+from sirl_jax.hb_compat import EXACT
 from sirl_jax.run import progress as prog
 from sirl_jax.run import runlog
 from sirl_jax.run.checkpoint import Checkpointer, CheckpointWriteError
@@ -39,7 +39,7 @@ _EVAL_STREAM = 0x6576616C  # folded into the seed so evaluation keys never meet 
 def load_task(task: str, build_env: bool = True, hb_compat: str = EXACT):
     """(TaskSpec, Env) of a task name, with bad names and missing extras as UsageError;
     `build_env=False`: the registered spec alone, (spec, None), nothing compiled. `hb_compat`:
-    HumanoidBench's quirks, "exact" or "fixed" (`sirl_jax/envs/hb_compat.py`)."""
+    HumanoidBench's quirks, "exact" or "fixed" (`sirl_jax/hb_compat.py`)."""
     try:
         return load(task, hb_compat=hb_compat) if build_env else (registered_spec(task), None)
     except KeyError as e:
@@ -270,9 +270,11 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
                               train.agent.iterations, derived))  # fmt: skip
     on_cpu = jax.default_backend() == "cpu"
     probe_cost = config.agent.model_size != "tiny"  # on any device: the same measured estimate
-    if probe_cost and on_cpu:
+    if probe_cost and on_cpu and config.agent.kind == "tdmpc2":
         print(f"CPU only: a {config.agent.model_size} model is GPU-sized; timing one plan and "
               "one update to estimate the cost...", flush=True)  # fmt: skip
+    elif probe_cost and on_cpu:
+        print("CPU only: timing one act and one update to estimate the cost...", flush=True)
     check_buffer_fits(train.buffer.nbytes)
     run_dir.mkdir(parents=True, exist_ok=True)
     ckpt = Checkpointer(run_dir / "checkpoints", max_to_keep=keep)

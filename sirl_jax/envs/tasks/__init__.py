@@ -13,7 +13,7 @@ import dataclasses
 from collections.abc import Callable
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.hb_compat import EXACT
+from sirl_jax.hb_compat import EXACT
 from sirl_jax.envs.humanoid import HumanoidEnv, Task
 from sirl_jax.envs.registry import TaskSpec, register
 from sirl_jax.envs.tasks.locomotion.balance import BalanceTask

@@ -7,12 +7,13 @@ each of them, so returns compare with the paper and HumanoidBench's published cu
 applies this repo's corrections. The switch reaches a task through
 `sirl_jax.envs.load(name, hb_compat=...)` (from the CLI: `--train.hb-compat`), which gives it to
 every HumanoidBench task (`Task.with_hb_compat`); the compiled MuJoCo model is the same in both
-modes, only reset, reward and task-state code read it.
+modes, only reset, reward and task-state code read it. It lives outside `sirl_jax.envs` so that
+the config can check it without importing MuJoCo (render must pick its GL backend first).
 """
 
 from __future__ import annotations
 
-from sirl_jax.agent.config import choice
+from sirl_jax.agent.checks import choice
 
 EXACT, FIXED = "exact", "fixed"
 HB_COMPAT = (EXACT, FIXED)
