@@ -189,9 +189,9 @@ def test_train_step_compiles_once_and_vmapped_seeds_equal_single_runs():
     assert 0.0 <= float(metrics["eval/policy_return"]) <= T
 
 
-STEPS, STOP_AT = 400, 300
+STEPS, STOP_AT = 650, 550  # the first 250-step episodes end at 500 env steps (2 envs)
 BASE = ["--preset", "fasttd3-smoke", "--task", "pendulum", "--steps", str(STEPS),
-        "--seed-steps", "100", "--chunk-steps", "25", "--num-envs", "2",
+        "--seed-steps", "200", "--chunk-steps", "25", "--num-envs", "2",
         "--eval-every", str(STEPS), "--log-every", "50", "--checkpoint-every", "0",
         "--no-progress"]  # fmt: skip
 

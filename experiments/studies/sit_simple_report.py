@@ -1,0 +1,127 @@
+"""The sit_simple study's summary.json and figure, from the arms' CSVs (partial ones too).
+
+    .venv/bin/python -m experiments.studies.sit_simple_report \
+        --results results/sit_simple --out docs/results/sit_simple_study
+
+Reads `<results>/study/{tdmpc2,tdmpbc}/eval.csv` (+ done.json) and `<results>/random.json`;
+writes `<out>/summary.json` (the keys the study promises) and `<out>/figure.png`: both arms'
+mean +- std planner eval return over their seeds against env steps, over the published
+TD-MPC2 and BMPC curves of the task, with the TDMPBC arm's R_max and 10x the random return.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import tyro
+
+from sirl_jax.run.reference import reference_curves
+from sirl_jax.run.runlog import CsvLog
+
+TASK = "h1hand-sit_simple-v0"
+ARMS = ("tdmpc2", "tdmpbc")
+REFERENCE_100K = 308.6  # TD-MPC2's published mean at 100k (sirl_jax/data/reference_curves.json)
+
+
+def arm_curves(arm_dir: Path) -> dict[int, dict[str, np.ndarray]]:
+    """{seed: {"steps", "return", "r_max"}} of the planner's eval return, by env step."""
+    rows = CsvLog(arm_dir / "eval.csv").rows()
+    seeds: dict[int, dict[str, list]] = {}
+    for r in rows:
+        d = seeds.setdefault(int(r["seed"]), {"steps": [], "return": [], "r_max": []})
+        d["steps"].append(int(r["env_steps"]))
+        d["return"].append(float(r["planner_return"]) if r["planner_return"] != "" else np.nan)
+        d["r_max"].append(float(r["r_max"]) if r["r_max"] != "" else np.nan)
+    return {s: {k: np.asarray(v) for k, v in d.items()} for s, d in sorted(seeds.items())}
+
+
+def summarize(results: Path) -> dict:
+    random = json.loads((results / "random.json").read_text())
+    arms, wall = {}, 0.0
+    for arm in ARMS:
+        d = results / "study" / arm
+        curves = arm_curves(d)
+        at = [float(c["return"][c["steps"] == 100_000][0]) if (c["steps"] == 100_000).any()
+              else None for c in curves.values()]  # fmt: skip
+        arms[arm] = {"final": [float(c["return"][-1]) for c in curves.values()], "at_100k": at,
+                     "final_steps": [int(c["steps"][-1]) for c in curves.values()]}  # fmt: skip
+        if (d / "done.json").exists():
+            wall = max(wall, float(json.loads((d / "done.json").read_text())["wall_s"]))
+        else:
+            last = CsvLog(d / "train.csv").rows()
+            wall = max(wall, float(last[-1]["wall_s"]) if last else 0.0)
+    steps = min(min(a["final_steps"]) for a in arms.values())
+    return {"task": TASK, "env_steps_per_seed": steps, "random_return": random["mean"],
+            "reference_100k": REFERENCE_100K,
+            "arms": {a: {"final": v["final"], "at_100k": v["at_100k"]} for a, v in arms.items()},
+            "wall_clock_s": wall}  # fmt: skip
+
+
+def figure(results: Path, summary: dict, out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    last = 0
+    for arm, color, label in (("tdmpc2", "tab:blue", "TD-MPC2 (beta 0)"),
+                              ("tdmpbc", "tab:red", "TDMPBC (beta 1)")):  # fmt: skip
+        curves = list(arm_curves(results / "study" / arm).values())
+        n = min(len(c["steps"]) for c in curves)
+        steps = curves[0]["steps"][:n]
+        ret = np.stack([c["return"][:n] for c in curves])
+        mean, std = np.nanmean(ret, 0), np.nanstd(ret, 0)
+        ax.plot(steps, mean, color=color, label=f"{label}, ours, {len(curves)} seeds")
+        ax.fill_between(steps, mean - std, mean + std, color=color, alpha=0.2)
+        if arm == "tdmpbc":
+            r = np.stack([c["r_max"][:n] for c in curves])
+            seen = np.isfinite(r).any(0)  # R_max exists once an episode has been recorded
+            rmax = np.nanmean(r[:, seen], 0)
+            ax.plot(steps[seen], rmax, color=color, ls=":", label="TDMPBC R_max (buffer), mean")
+        last = max(last, int(steps[-1]))
+    for ref, style in zip(reference_curves(TASK), ("--", "-."), strict=False):
+        c = ref.until(max(last, 100_000))
+        ax.plot(c.steps, c.mean, color="gray", ls=style,
+                label=f"{ref.algo} published (full config, 3 seeds)")  # fmt: skip
+    bar = 10 * summary["random_return"]
+    ax.axhline(bar, color="k", lw=0.8, label=f"10x random ({bar:.0f})")
+    ax.set_xlabel("env steps per seed")
+    ax.set_ylabel("eval return (planner, eval mode)")
+    ax.set_title(f"{TASK}: eval return against env steps")
+    ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+
+
+@dataclasses.dataclass(frozen=True)
+class Args:
+    results: str = "results/sit_simple"
+    out: str = "docs/results/sit_simple_study"
+
+
+def main(args: Args) -> None:
+    results, out = Path(args.results), Path(args.out)
+    summary = summarize(results)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    figure(results, summary, out / "figure.png")
+    ten_x = 10 * summary["random_return"]
+    for arm, v in summary["arms"].items():
+        print(f"{arm}: final {np.round(v['final'], 1)} (10x random = {ten_x:.1f}: "
+              f"{sum(f >= ten_x for f in v['final'])}/{len(v['final'])} seeds), at 100k "
+              f"{v['at_100k']}")  # fmt: skip
+    td = [x for x in summary["arms"]["tdmpc2"]["at_100k"] if x is not None]
+    if td:
+        print(f"TD-MPC2 arm at 100k: {np.mean(td):.1f} = {np.mean(td) / REFERENCE_100K:.2f} of "
+              f"the reference {REFERENCE_100K}")  # fmt: skip
+    print(f"wrote {out / 'summary.json'} and {out / 'figure.png'}")
+
+
+if __name__ == "__main__":
+    main(tyro.cli(Args))
