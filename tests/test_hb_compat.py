@@ -22,11 +22,11 @@ import pytest
 from sirl_jax.config import TrainConfig
 from sirl_jax.envs import load, make
 from sirl_jax.envs.base import Env, VecEnv, init_state
-from sirl_jax.hb_compat import HB_COMPAT
 from sirl_jax.envs.tasks.manipulation import kitchen as K
 from sirl_jax.envs.tasks.manipulation import truck as T
 from sirl_jax.envs.tasks.manipulation.base import body_id, free_joint_adr
 from sirl_jax.envs.tasks.manipulation.basketball import CATCH, THROW
+from sirl_jax.hb_compat import HB_COMPAT
 
 _ENVS: dict[str, object] = {}
 

@@ -186,8 +186,9 @@ def test_render_model_is_render_only():
 
 
 def test_goal_markers_come_from_the_task_state_of_the_named_tasks():
-    import mujoco
     from types import SimpleNamespace
+
+    import mujoco
 
     from sirl_jax.run import markers
 

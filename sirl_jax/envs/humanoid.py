@@ -36,8 +36,8 @@ from mujoco import mjx
 from sirl_jax.envs import h1
 from sirl_jax.envs import physics as _physics
 from sirl_jax.envs.base import Env, EnvState, init_state
-from sirl_jax.hb_compat import EXACT, check_hb_compat
 from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, Simulator
+from sirl_jax.hb_compat import EXACT, check_hb_compat
 
 FRAME_SKIP = h1.N_SUBSTEPS
 """Physics substeps per control step (dt 0.002 s -> 50 Hz control), as in HumanoidBench."""

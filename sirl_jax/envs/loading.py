@@ -14,10 +14,10 @@ from __future__ import annotations
 import dataclasses
 
 from sirl_jax.envs.base import Env
-from sirl_jax.hb_compat import EXACT, check_hb_compat
 from sirl_jax.envs.physics import Physics, check_impl
 from sirl_jax.envs.playground_adapter import PREFIXES, register_playground_task
 from sirl_jax.envs.registry import TASKS, TaskSpec
+from sirl_jax.hb_compat import EXACT, check_hb_compat
 
 __all__ = ["PREFIXES", "load", "spec", "with_physics"]
 

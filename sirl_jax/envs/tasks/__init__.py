@@ -13,7 +13,6 @@ import dataclasses
 from collections.abc import Callable
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.hb_compat import EXACT
 from sirl_jax.envs.humanoid import HumanoidEnv, Task
 from sirl_jax.envs.registry import TaskSpec, register
 from sirl_jax.envs.tasks.locomotion.balance import BalanceTask
@@ -36,6 +35,7 @@ from sirl_jax.envs.tasks.manipulation.room import RoomTask
 from sirl_jax.envs.tasks.manipulation.spoon import SpoonTask
 from sirl_jax.envs.tasks.manipulation.truck import TruckTask
 from sirl_jax.envs.tasks.manipulation.window import WindowTask
+from sirl_jax.hb_compat import EXACT
 
 VARIANTS = ("h1hand", "h1")
 
