@@ -84,19 +84,24 @@ def _check_episodes(num_episodes: int) -> None:
         raise ValueError(f"num_episodes={num_episodes!r} is invalid; allowed: an int >= 1")
 
 
-def make_random_evaluate(env: Env, num_episodes: int) -> Callable:
-    """Builds `evaluate(key) -> metrics` of the uniform random policy (the baseline curve).
-
-    Metrics as `make_evaluate`'s, prefix `random`: eval/random_{return,...}.
-    """
+def make_random_evaluate(env: Env, num_episodes: int, action: str = "uniform") -> Callable:
+    """Builds `evaluate(key) -> metrics` of a baseline policy: `action="uniform"` (the random
+    policy, metrics eval/random_*) or `"zero"` (every action 0, i.e. each actuator held at the
+    middle of its range; metrics eval/zero_*), as `make_evaluate`'s."""
     _check_episodes(num_episodes)
+    if action not in ("uniform", "zero"):
+        raise ValueError(f"action={action!r} is invalid; allowed: 'uniform', 'zero'")
+    shape = (num_episodes, env.action_size)
 
     def act(env_state, aux, k):
-        shape = (num_episodes, env.action_size)
+        if action == "zero":
+            return jnp.zeros(shape, jnp.float32), aux
         return jax.random.uniform(k, shape, minval=-1.0, maxval=1.0), aux
 
+    prefix = "random" if action == "uniform" else "zero"
+
     def evaluate(key: jax.Array) -> dict[str, jax.Array]:
-        return _summary("random", env.success_bar, *_rollout(env, num_episodes, act, None, key))
+        return _summary(prefix, env.success_bar, *_rollout(env, num_episodes, act, None, key))
 
     return evaluate
 

@@ -150,6 +150,22 @@ def test_evaluate(train, compiled):
     assert float(metrics["eval/r_max"]) == float(jax.device_get(state.buffer.r_max))
 
 
+@pytest.mark.timeout(300)
+def test_baseline_policies_spend_the_control_they_should():
+    """The pendulum's small_control term is (4 + 1 - u^2) / 5: exactly 1 for the zero-action
+    baseline, and (4 + 2/3) / 5 = 0.933 in expectation for uniform random actions."""
+    from sirl_jax.evaluate import make_random_evaluate
+
+    env, key = PendulumSwingup(episode_length=T), jax.random.PRNGKey(0)
+    zero = jax.device_get(jax.jit(make_random_evaluate(env, 4, "zero"))(key))
+    assert float(zero["eval/zero_term/small_control"]) == pytest.approx(1.0, abs=1e-6)
+    assert float(zero["eval/zero_length"]) == T
+    rand = jax.device_get(jax.jit(make_random_evaluate(env, 4))(key))
+    assert 0.91 < float(rand["eval/random_term/small_control"]) < 0.955
+    with pytest.raises(ValueError, match="action='gaussian' is invalid"):
+        make_random_evaluate(env, 4, "gaussian")
+
+
 def test_seed_steps_and_capacity():
     tc = TrainConfig(num_envs=4, steps=500, buffer_size=3_000_000)
     assert tc.resolved_seed_steps(1000) == 5000 * 4

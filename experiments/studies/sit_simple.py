@@ -70,6 +70,8 @@ class Args:
     random_episodes: int = 0
     """> 0: measure the uniform random policy's return over this many episodes (one jitted
     rollout, every episode from its own reset) and write results/.../random.json."""
+    zero_episodes: int = 0
+    """> 0: the same for the zero-action policy (standing still), results/.../zero_action.json."""
     study_config: str = "e4-utd1"
     """The pilot config the study runs at (the pilot's winner, docs/results/sit_simple_study.md)."""
     budget_cpu_s: float = 2400.0
@@ -89,18 +91,20 @@ def report(root: Path) -> None:
                   f" prior {r['policy_return']:>7} len {r['planner_length']}")
 
 
-def random_baseline(episodes: int, out: Path) -> dict:
-    """The uniform random policy on the task: mean and std of the return over `episodes`."""
+def random_baseline(episodes: int, out: Path, action: str = "uniform") -> dict:
+    """A baseline policy on the task (`action`: uniform random, or zero = standing still):
+    mean and std of the return over `episodes`."""
     enable_compilation_cache()
-    evaluate = make_random_evaluate(load(TASK)[1], episodes)
+    evaluate = make_random_evaluate(load(TASK)[1], episodes, action)
     m = jax.device_get(jax.jit(evaluate)(jax.random.PRNGKey(0)))
-    result = {"task": TASK, "episodes": episodes, "mean": float(m["eval/random_return"]),
-              "std": float(m["eval/random_return_std"]),
-              "mean_length": float(m["eval/random_length"]),
-              "blowups": int(m["eval/random_blowups"])}  # fmt: skip
+    p = "eval/random" if action == "uniform" else "eval/zero"
+    result = {"task": TASK, "policy": action, "episodes": episodes,
+              "mean": float(m[f"{p}_return"]), "std": float(m[f"{p}_return_std"]),
+              "mean_length": float(m[f"{p}_length"]),
+              "blowups": int(m[f"{p}_blowups"])}  # fmt: skip
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=1) + "\n")
-    print(f"random policy on {TASK}: {result['mean']:.2f} +- {result['std']:.2f} over "
+    print(f"{action} policy on {TASK}: {result['mean']:.2f} +- {result['std']:.2f} over "
           f"{episodes} episodes (mean length {result['mean_length']:.1f}) -> {out}")
     return result
 
@@ -118,6 +122,8 @@ def main(args: Args) -> None:
         run_arm(cfg, args.seeds, root / "study" / args.arm, f"study {args.arm}")
     if args.random_episodes:
         random_baseline(args.random_episodes, root / "random.json")
+    if args.zero_episodes:
+        random_baseline(args.zero_episodes, root / "zero_action.json", "zero")
     if args.report:
         report(root)
 
