@@ -61,6 +61,24 @@ def _load_final(run_dir: Path):
     return step, jax.tree.leaves(state)
 
 
+def train_interrupted(argv: list[str], stop_at: int) -> tuple[int, list[int]]:
+    """`train argv` with a Ctrl-C (SIGINT) sent after the first chunk reaching `stop_at` env
+    steps; returns (exit code, [env steps at which it was sent])."""
+    original, sent = progress.Progress.update, []
+
+    def interrupt_once(self, env_steps, updates, metrics):
+        original(self, env_steps, updates, metrics)
+        if env_steps >= stop_at and not sent:
+            sent.append(env_steps)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    progress.Progress.update = interrupt_once
+    try:
+        return cli.main(["train", *argv]), sent
+    finally:
+        progress.Progress.update = original
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     """Run A: uninterrupted. Run B: Ctrl-C after the chunk ending at STOP_AT, then --resume."""
@@ -68,20 +86,7 @@ def runs(tmp_path_factory):
     a, b = root / "a", root / "b"
     assert cli.main(["train", *BASE, "--run-dir", str(a)]) == 0
 
-    original = progress.Progress.update
-    sent = []
-
-    def interrupt_once(self, env_steps, updates, metrics):
-        original(self, env_steps, updates, metrics)
-        if env_steps >= STOP_AT and not sent:
-            sent.append(env_steps)
-            os.kill(os.getpid(), signal.SIGINT)
-
-    progress.Progress.update = interrupt_once
-    try:
-        stopped = cli.main(["train", *BASE, "--run-dir", str(b)])
-    finally:
-        progress.Progress.update = original
+    stopped, sent = train_interrupted([*BASE, "--run-dir", str(b)], STOP_AT)
     steps_after_stop = Checkpointer(b / "checkpoints").steps()
     resumed = cli.main(["train", "--resume", str(b), "--no-progress"])
     return {"a": a, "b": b, "stopped": stopped, "resumed": resumed, "sent": sent,

@@ -4,8 +4,6 @@ train step (one compile, seeds vmapped, resume bit-identical, eval, export) on t
 from __future__ import annotations
 
 import dataclasses
-import os
-import signal
 
 import jax
 import jax.numpy as jnp
@@ -198,27 +196,14 @@ BASE = ["--preset", "fasttd3-smoke", "--task", "pendulum", "--steps", str(STEPS)
 
 @pytest.mark.timeout(600)
 def test_cli_trains_resumes_bit_identical_evaluates_and_exports(tmp_path, capsys):
-    from sirl_jax.run import cli, progress
+    from test_cli import _load_final, train_interrupted
+
+    from sirl_jax.run import cli
 
     a, b = tmp_path / "a", tmp_path / "b"
     assert cli.main(["train", *BASE, "--run-dir", str(a)]) == 0
-    original, sent = progress.Progress.update, []
-
-    def interrupt_once(self, env_steps, updates, metrics):
-        original(self, env_steps, updates, metrics)
-        if env_steps >= STOP_AT and not sent:
-            sent.append(env_steps)
-            os.kill(os.getpid(), signal.SIGINT)
-
-    progress.Progress.update = interrupt_once
-    try:
-        assert cli.main(["train", *BASE, "--run-dir", str(b)]) == 0
-    finally:
-        progress.Progress.update = original
-    assert sent == [STOP_AT]
+    assert train_interrupted([*BASE, "--run-dir", str(b)], STOP_AT) == (0, [STOP_AT])
     assert cli.main(["train", "--resume", str(b), "--no-progress"]) == 0
-    from test_cli import _load_final
-
     step_a, leaves_a = _load_final(a)
     step_b, leaves_b = _load_final(b)
     assert step_a == step_b == STEPS and len(leaves_a) == len(leaves_b)

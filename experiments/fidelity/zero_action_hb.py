@@ -18,33 +18,18 @@ import argparse
 from pathlib import Path
 
 import mujoco
-import numpy as np
+
+from sirl_jax.envs.tasks.locomotion.sit import sit_reward
 
 
-def tol(x, lo: float, hi: float, margin: float, sigmoid: str = "gaussian", vam: float = 0.1):
-    """dm_control's `rewards.tolerance` for the three sigmoids the spec uses."""
-    d = max(lo - x, x - hi, 0.0) / margin
-    if d == 0.0:
-        return 1.0
-    if sigmoid == "linear":
-        return max(0.0, 1.0 - d * (1.0 - vam))
-    if sigmoid == "quadratic":
-        return max(0.0, 1.0 - d * d * (1.0 - vam))
-    return float(np.exp(-0.5 * (d * np.sqrt(-2.0 * np.log(vam))) ** 2))
-
-
-def sit_simple_reward(m: mujoco.MjModel, d: mujoco.MjData) -> float:
-    """HumanoidBench's sit_simple per-step reward, written from the spec's formula."""
-    chair = d.body("chair").xpos
-    sitting = tol(d.qpos[2], 0.68, 0.72, 0.2)
-    on_chair = tol(d.qpos[0] - chair[0], -0.19, 0.19, 0.2) * tol(d.qpos[1] - chair[1], 0, 0, 0.1)
-    posture = tol(d.site("head").xpos[2] - d.site("imu").xpos[2], 0.35, 0.45, 0.3)
-    upright = tol(d.body("torso_link").xmat[8], 0.95, np.inf, 0.9, "linear", 0.0)
-    sit = (0.5 * sitting + 0.5 * on_chair) * upright * posture
-    small_control = (4.0 + np.mean(np.maximum(0.0, 1.0 - (d.actuator_force / 10.0) ** 2))) / 5.0
-    v = d.sensor("pelvis_subtreelinvel").data
-    dont_move = (tol(v[0], 0, 0, 2.0) + tol(v[1], 0, 0, 2.0)) / 2.0
-    return float(small_control * sit * dont_move)
+def sit_simple_reward(d: mujoco.MjData) -> float:
+    """sit_simple's per-step reward of HumanoidBench's state, by the project's own `sit_reward`
+    (the spec's formula of HumanoidBench's) on HumanoidBench's sites and sensors."""
+    reward, _ = sit_reward(
+        d.qpos[0:3], d.body("chair").xpos[:2], d.site("head").xpos[2], d.site("imu").xpos[2],
+        d.body("torso_link").xmat[8], d.actuator_force, d.sensor("pelvis_subtreelinvel").data,
+    )  # fmt: skip
+    return float(reward)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -62,7 +47,7 @@ def main(argv: list[str] | None = None) -> None:
     for t in range(1, args.steps + 1):
         for _ in range(10):
             mujoco.mj_step(m, d)
-        ret += sit_simple_reward(m, d)
+        ret += sit_simple_reward(d)
         if fell is None and d.qpos[2] < 0.5:
             fell = t
         if t % 200 == 0:

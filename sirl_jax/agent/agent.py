@@ -13,7 +13,7 @@ from flax import struct
 from sirl_jax.agent import losses
 from sirl_jax.agent.config import AgentConfig
 from sirl_jax.agent.math import discount_from_episode_length
-from sirl_jax.agent.networks import init_params, policy_fn
+from sirl_jax.agent.networks import init_params
 from sirl_jax.agent.planner import PlannerModel, PlannerState, make_planner
 from sirl_jax.agent.world_model import make_world_model
 from sirl_jax.types import Batch
@@ -62,7 +62,6 @@ class Agent:
     plan: Callable  # (state, acting state, obs[E, O], first[E], key, eval_mode) -> (a, acting)
     act_policy: Callable  # (state, obs[E, O], key, eval_mode) -> action[E, A]
     act: Callable  # (state, acting state, obs, first, key) -> (a[E, A], acting): training's
-    export_policy: Callable  # (state) -> (obs[..., O] -> action[..., A]), the eval-mode policy
 
 
 def _wm_optimizer(cfg: AgentConfig) -> optax.GradientTransformation:
@@ -250,10 +249,6 @@ def make_agent(
             return plan(state, planner_state, obs, first, key)
         return act_policy(state, obs, key), planner_state
 
-    def export_policy(state: AgentState):
-        """obs [..., O] -> tanh(mu) [..., A], the prior's eval-mode action."""
-        return policy_fn(cfg, action_size, state.params)
-
     return Agent(
         cfg=cfg,
         obs_size=obs_size,
@@ -269,5 +264,4 @@ def make_agent(
         plan=plan,
         act_policy=act_policy,
         act=act,
-        export_policy=export_policy,
     )

@@ -153,11 +153,11 @@ def policy_from_params(cfg: AgentConfig, action_size: int, params: dict):
     """obs [..., O] -> the actor's eval-mode action [..., A], from `export_params`' dict."""
     fc = cfg.fasttd3
     actor = ReluMLP(widths(fc.actor_hidden_dim), action_size, fc.init_scale, tanh=True)
-    norm = params["obs_norm"]
+    norm = ObsNorm(params["obs_norm"]["mean"], params["obs_norm"]["var"], jnp.zeros(()))
 
     def policy(obs):
         if fc.obs_normalization:
-            obs = (obs - norm["mean"]) / (jnp.sqrt(norm["var"]) + fc.obs_norm_eps)
+            obs = norm(obs, fc.obs_norm_eps)
         return actor.apply({"params": params["actor"]}, obs)
 
     return policy
@@ -269,41 +269,51 @@ def make_fasttd3(
         return loss, (new_scale, {**metrics, "sirl_loss": sirl_loss,
                                   "sirl_weight_mean": jnp.mean(omega), "pi_loss": loss})
 
-    def split_groups(batch: Batch) -> list[Batch]:
-        """The P batches of B windows of one group ([.., P * B, ..] -> P x [.., B, ..])."""
+    def groups(batch: Batch) -> Batch:
+        """The P batches of B windows one update group uses: [.., P * B, ..] -> [P, .., B, ..]
+        (the B axis is 0 for episode_return, 1 for the time-major fields)."""
 
-        def part(x, i):
-            return jnp.split(x, P, axis=0 if x.ndim == 1 else 1)[i]
+        def split(x):
+            axis = 0 if x.ndim == 1 else 1
+            x = x.reshape(x.shape[:axis] + (P, -1) + x.shape[axis + 1:])
+            return jnp.moveaxis(x, axis, 0)
 
-        return [jax.tree_util.tree_map(lambda x, i=i: part(x, i), batch) for i in range(P)]
+        return jax.tree_util.tree_map(split, batch)
+
+    def critic_step(actor_params, carry, xs):
+        """One critic update on one batch, then the target's Polyak step."""
+        critic, target, norm, opt = carry
+        b, key = xs
+        norm, s0 = observe(norm, b.obs[0])
+        norm, sn = observe(norm, b.obs[n])
+        alive = jnp.cumprod(1.0 - b.terminated, axis=0)  # [n, B] after step k
+        ret = jnp.sum(gammas[:, None] * jnp.concatenate(
+            [jnp.ones_like(alive[:1]), alive[:-1]]) * b.reward, axis=0)  # fmt: skip
+        (_, m), grads = jax.value_and_grad(critic_loss, has_aux=True)(
+            critic, target, actor_params, s0, b.action[0], sn, ret, alive[-1], key)
+        upd, opt = critic_tx.update(grads, opt, critic)
+        critic = optax.apply_updates(critic, upd)
+        m["critic_grad_norm"] = optax.tree.norm(grads)
+        return (critic, polyak(target, critic, fc.tau), norm, opt), (m, s0)
 
     def update(state: FastTD3State, batch: Batch, r_max: jax.Array, key: jax.Array):
         """One update group: P critic updates (each on B transitions, each followed by the
-        target's Polyak step) and one actor update after the last (module docstring)."""
-        params, target, norm = state.params, state.target_critic, state.obs_norm
-        critic_opt, sums = state.critic_opt_state, {}
-        keys = jax.random.split(key, P)
-        for i, b in enumerate(split_groups(batch)):
-            norm, s0 = observe(norm, b.obs[0])
-            norm, sn = observe(norm, b.obs[n])
-            alive = jnp.cumprod(1.0 - b.terminated, axis=0)  # [n, B] after step k
-            ret = jnp.sum(gammas[:, None] * jnp.concatenate(
-                [jnp.ones_like(alive[:1]), alive[:-1]]) * b.reward, axis=0)  # fmt: skip
-            (_, m), grads = jax.value_and_grad(critic_loss, has_aux=True)(
-                params["critic"], target, params["actor"], s0, b.action[0], sn, ret, alive[-1],
-                keys[i])  # fmt: skip
-            upd, critic_opt = critic_tx.update(grads, critic_opt, params["critic"])
-            params = {**params, "critic": optax.apply_updates(params["critic"], upd)}
-            target = polyak(target, params["critic"], fc.tau)
-            m["critic_grad_norm"] = optax.tree.norm(grads)
-            sums = {k: sums.get(k, 0.0) + v / P for k, v in m.items()}
+        target's Polyak step) under one `lax.scan`, then one actor update on the last batch
+        (module docstring)."""
+        params, grouped = state.params, groups(batch)
+        carry = (params["critic"], state.target_critic, state.obs_norm, state.critic_opt_state)
+        (critic, target, norm, critic_opt), (ms, s0s) = jax.lax.scan(
+            lambda c, xs: critic_step(params["actor"], c, xs), carry,
+            (grouped, jax.random.split(key, P)))  # fmt: skip
+        last = jax.tree_util.tree_map(lambda x: x[-1], grouped)
         (_, (scale, pi_m)), grads = jax.value_and_grad(actor_loss, has_aux=True)(
-            params["actor"], params["critic"], state.scale, s0, b.action[0], b.episode_return,
+            params["actor"], critic, state.scale, s0s[-1], last.action[0], last.episode_return,
             sirl_reference(r_max))  # fmt: skip
         upd, actor_opt = actor_tx.update(grads, state.actor_opt_state, params["actor"])
-        params = {**params, "actor": optax.apply_updates(params["actor"], upd)}
+        params = {"actor": optax.apply_updates(params["actor"], upd), "critic": critic}
         new_state = FastTD3State(params, target, actor_opt, critic_opt, norm, scale)
-        return new_state, {**sums, **pi_m, "actor_grad_norm": optax.tree.norm(grads)}
+        metrics = {k: jnp.mean(v) for k, v in ms.items()}
+        return new_state, {**metrics, **pi_m, "actor_grad_norm": optax.tree.norm(grads)}
 
     def mean_action(state: FastTD3State, obs):
         return actor.apply({"params": state.params["actor"]}, normalize(state.obs_norm, obs))
@@ -331,12 +341,7 @@ def make_fasttd3(
     def init_noise(num_envs: int) -> NoiseState:
         return NoiseState(jnp.zeros((num_envs, 1), jnp.float32))
 
-    def export_policy(state: FastTD3State):
-        """obs [..., O] -> actor(normalised obs) [..., A], the eval-mode action."""
-        return policy_from_params(cfg, A, export_params(state))
-
     return Agent(cfg=cfg, obs_size=obs_size, action_size=A, episode_length=episode_length,
                  success_bar=success_bar, discount=fc.gamma, iterations=0, init=init,
                  update=update, sirl_reference=sirl_reference, init_planner=init_noise,
-                 plan=plan, act_policy=act_policy, act=act,
-                 export_policy=export_policy)  # fmt: skip
+                 plan=plan, act_policy=act_policy, act=act)  # fmt: skip
