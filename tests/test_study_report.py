@@ -42,3 +42,56 @@ def test_summary_has_the_promised_keys_and_values(tmp_path):
     main(Args(results=str(tmp_path), out=str(out)))
     assert json.loads((out / "summary.json").read_text()) == s
     assert (out / "figure.png").stat().st_size > 10_000
+
+
+def _curve(d, returns, wall_step_s, cpu_step_s, planner: bool):
+    """One seed per entry of `returns` (a list per seed, one eval every 10k steps)."""
+    d.mkdir(parents=True)
+    rows = []
+    for seed, rets in enumerate(returns):
+        for i, ret in enumerate(rets):
+            rows.append({"seed": seed, "env_steps": 10_000 * i, "wall_s": wall_step_s * i,
+                         "planner_return": ret if planner else "", "planner_length": "",
+                         "policy_return": 0.0 if planner else ret, "policy_length": 100.0,
+                         "r_max": "", "cpu_s": cpu_step_s * i})  # fmt: skip
+    CsvLog(d / "eval.csv").extend(rows)
+
+
+def test_parallel_learner_summary_times_each_seed_to_10x_random(tmp_path):
+    from experiments.studies import parallel_learner as pl
+
+    # 10x random = 100: the first evaluation at or over it counts, on each clock
+    _curve(tmp_path / "pl" / "beta0", [[5, 50, 100, 90], [5, 120, 130, 140], [5, 10, 20, 30]],
+           wall_step_s=360.0, cpu_step_s=720.0, planner=False)
+    _curve(tmp_path / "pl" / "beta1", [[5, 99.9, 101, 150], [5, 200, 80, 300], [5, 5, 5, 100]],
+           wall_step_s=720.0, cpu_step_s=1440.0, planner=False)
+    _curve(tmp_path / "td", [[8, 20, 150], [50, 60, 70]], wall_step_s=1800.0, cpu_step_s=900.0,
+           planner=True)
+    (tmp_path / "random.json").write_text(json.dumps({"mean": 10.0, "episodes": 64}))
+    s = pl.summarize(tmp_path / "pl", tmp_path / "td", tmp_path / "random.json")
+    assert s["random_return"] == 10.0 and s["task"] == "h1hand-sit_simple-v0"
+    assert s["arms"]["beta0"]["final"] == [90.0, 140.0, 30.0]
+    assert s["arms"]["beta0"]["hours_to_10x"] == [0.2, 0.1, None]  # evals 2 and 1 x 360 s
+    assert s["arms"]["beta0"]["cpu_hours_to_10x"] == [0.4, 0.2, None]
+    assert s["arms"]["beta1"]["hours_to_10x"] == [0.4, 0.2, 0.6]  # 99.9 is under the bar
+    assert s["tdmpc2_hours_to_10x"] == [1.0, None]  # the planner column, not the prior's
+    assert s["tdmpc2_cpu_hours_to_10x"] == [0.5, None]
+    out = tmp_path / "out"
+    pl.main(pl.Args(report=True, results=str(tmp_path / "pl"), tdmpc2=str(tmp_path / "td"),
+                     random=str(tmp_path / "random.json"), out=str(out)))  # fmt: skip
+    assert json.loads((out / "summary.json").read_text()) == s
+    assert (out / "figure.png").stat().st_size > 10_000
+
+
+def test_parallel_learner_config_is_the_fasttd3_cpu_preset_at_beta():
+    from experiments.studies.parallel_learner import config
+    from sirl_jax.presets import get_preset
+
+    preset = get_preset("fasttd3-cpu")
+    for beta in (0.0, 1.0):
+        cfg = config(beta, 200_000)
+        assert cfg.agent.kind == "fasttd3" and cfg.agent.sirl.beta == beta
+        assert cfg.agent.fasttd3 == preset.agent.fasttd3
+        assert cfg.train.task == "h1hand-sit_simple-v0" and cfg.train.steps == 200_000
+        assert (cfg.train.eval_every, cfg.train.eval_episodes) == (10_000, 4)
+        assert cfg.train.num_envs == preset.train.num_envs

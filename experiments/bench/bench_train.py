@@ -65,20 +65,24 @@ def _warm_state(train: Train):
     return state, step
 
 
-def _parts(train: Train, state, k: int, e: int, n_upd: int):
-    """Jitted functions doing one chunk's work per part, each alone."""
+def _parts(train: Train, state, k: int, e: int, n_upd: int, vmapped: bool = False):
+    """Jitted functions doing one chunk's work per part, each alone. vmapped: `state` holds S
+    seeds (leading axis), and each part runs vmapped over them as the S-seed program does
+    (the update's fixed batch is seed 0's)."""
     agent, buffer, vec = train.agent, train.buffer, train.vec_env
     a = agent.action_size
     key = jax.random.PRNGKey(1)
+    one = jax.tree.map(lambda x: x[0], state) if vmapped else state
+    jit = (lambda f: jax.jit(jax.vmap(f))) if vmapped else jax.jit
 
-    @jax.jit
+    @jit
     def env_part(env_state):
         def body(s, _):
             return vec.step(s, jnp.zeros((e, a))), None
 
         return jax.lax.scan(body, env_state, None, length=k)[0]
 
-    @jax.jit
+    @jit
     def plan_part(agent_state, planner, obs, first):
         def body(p, kk):
             act, p = agent.plan(agent_state, p, obs, first, kk)
@@ -86,7 +90,7 @@ def _parts(train: Train, state, k: int, e: int, n_upd: int):
 
         return jax.lax.scan(body, planner, jax.random.split(key, k))
 
-    @jax.jit
+    @jit
     def add_part(buf, obs):
         def body(b, _):
             zeros = jnp.zeros((e,), bool)
@@ -94,18 +98,18 @@ def _parts(train: Train, state, k: int, e: int, n_upd: int):
 
         return jax.lax.scan(body, buf, None, length=k)[0]
 
-    @jax.jit
+    @jit
     def sample_part(buf):
         return jax.lax.map(lambda kk: buffer.sample(buf, kk), jax.random.split(key, k * n_upd))
 
-    batch = buffer.sample(state.buffer, key)
+    batch = buffer.sample(one.buffer, key)
 
-    @jax.jit
+    @jit
     def update_part(agent_state):
         # The metrics are part of an update's work: sum them so that XLA cannot drop them.
         def body(i, carry):
             s, total = carry
-            s, m = agent.update(s, batch, buffer.r_max(state.buffer), jax.random.fold_in(key, i))
+            s, m = agent.update(s, batch, buffer.r_max(one.buffer), jax.random.fold_in(key, i))
             return s, total + sum(jnp.mean(v) for v in m.values())
 
         return jax.lax.fori_loop(0, k * n_upd, body, (agent_state, jnp.zeros(())))

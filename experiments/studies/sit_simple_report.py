@@ -7,6 +7,8 @@ Reads `<results>/study/{tdmpc2,tdmpbc}/eval.csv` (+ done.json) and `<results>/ra
 writes `<out>/summary.json` (the keys the study promises) and `<out>/figure.png`: both arms'
 mean +- std planner eval return over their seeds against env steps, over the published
 TD-MPC2 and BMPC curves of the task, with the TDMPBC arm's R_max and 10x the random return.
+With `--video`, also `<out>/best_seed.mp4`: one episode of the best seed's policy (planner,
+eval mode) from its arm's latest checkpoint, the seed with the highest last eval return.
 """
 
 from __future__ import annotations
@@ -99,10 +101,68 @@ def figure(results: Path, summary: dict, out: Path) -> None:
     plt.close(fig)
 
 
+def best_seed(results: Path) -> tuple[str, int, int, float]:
+    """(arm, seed, env step, eval return) of the best last evaluation that has a checkpoint."""
+    from sirl_jax.run.checkpoint import Checkpointer
+
+    best = None
+    for arm in ARMS:
+        ckpt = Checkpointer(results / "study" / arm / "checkpoints")
+        try:
+            step = ckpt.latest_step()
+        finally:
+            ckpt.close()
+        for seed, c in arm_curves(results / "study" / arm).items():
+            at = c["steps"] == step
+            if step is not None and at.any() and (best is None or c["return"][at][0] > best[3]):
+                best = (arm, seed, step, float(c["return"][at][0]))
+    if best is None:
+        raise SystemExit(f"error: no arm under {results / 'study'} has a checkpoint to render")
+    return best
+
+
+def video(results: Path, out: Path, width: int, height: int) -> dict:
+    """Renders one episode of the best seed (`best_seed`) to `out`: the vmapped train state of
+    its arm is restored, and that seed's agent state is sliced out."""
+    from sirl_jax.run.render import select_gl
+
+    select_gl()
+    import jax
+
+    from sirl_jax.run.checkpoint import Checkpointer
+    from sirl_jax.run.render import render_policy
+    from sirl_jax.run.runlog import load_config
+    from sirl_jax.run.runner import build, eval_key
+
+    arm, seed, step, ret = best_seed(results)
+    d = results / "study" / arm
+    config = load_config(d)
+    spec, train = build(config)
+    seeds = len(arm_curves(d))
+    abstract = jax.eval_shape(jax.vmap(train.init), jax.random.split(jax.random.PRNGKey(0), seeds))
+    ckpt = Checkpointer(d / "checkpoints")
+    try:
+        state = ckpt.restore({"state": abstract}, step)["state"]
+    finally:
+        ckpt.close()
+    agent_state = jax.tree.map(lambda x: x[seed], state.agent)
+    title = f"{spec.id} {arm} seed {seed} @ {step:,} steps, planner"
+    summary = render_policy(train.env, train.agent, agent_state, "planner", 1,
+                            eval_key(seed, step), out, title, width=width, height=height)
+    size = out.stat().st_size / 1e6
+    print(f"wrote {out}: {arm} seed {seed} at {step:,} env steps (eval return {ret:.1f}); this "
+          f"episode {summary['returns'][0]:.1f} over {summary['frames']} frames, {size:.1f} MB")
+    return summary
+
+
 @dataclasses.dataclass(frozen=True)
 class Args:
     results: str = "results/sit_simple"
     out: str = "docs/results/sit_simple_study"
+    video: bool = False
+    """Also render the best seed's final policy (one episode) to <out>/best_seed.mp4."""
+    width: int = 480
+    height: int = 360
 
 
 def main(args: Args) -> None:
@@ -121,6 +181,8 @@ def main(args: Args) -> None:
         print(f"TD-MPC2 arm at 100k: {np.mean(td):.1f} = {np.mean(td) / REFERENCE_100K:.2f} of "
               f"the reference {REFERENCE_100K}")  # fmt: skip
     print(f"wrote {out / 'summary.json'} and {out / 'figure.png'}")
+    if args.video:
+        video(results, out / "best_seed.mp4", args.width, args.height)
 
 
 if __name__ == "__main__":

@@ -230,6 +230,23 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
         finally:
             ckpt.close()
         agent_state, seed = state.agent, config.train.seed
+    if out is None:
+        out = (Path(f"{spec.id}-{policy}.mp4") if run_dir is None
+               else run_dir / "videos" / f"{step}-{policy}.mp4")  # fmt: skip
+    return render_policy(env, agent, agent_state, policy, episodes, eval_key(seed, step or 0),
+                         out, f"{spec.id} {policy}", max_steps=max_steps, width=width,
+                         height=height, shadows=shadows, camera=camera)  # fmt: skip
+
+
+def render_policy(env, agent, agent_state, policy: str, episodes: int, key, out: Path,
+                  title: str, *, max_steps: int | None = None, width: int = 640,
+                  height: int = 480, shadows: bool = True,
+                  camera: str = "track") -> dict[str, Any]:  # fmt: skip
+    """Rolls out `policy` (planner or prior in eval mode, or random; `agent_state` of one
+    seed) for `episodes` episodes of at most `max_steps` steps and writes their mp4 to `out`
+    (call `select_gl` first); returns `write_video`'s summary."""
+    import jax
+
     steps = min(env.episode_length, max_steps or env.episode_length)
     if policy == "random":
         def act(s, aux, k):
@@ -244,12 +261,8 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
         def act(s, aux, k):
             return agent.act_policy(agent_state, s.obs, k, True), aux
         aux0 = None
-    key = eval_key(seed, step or 0)
     physics, reward, done, task_state = jax.device_get(jax.jit(
         lambda k: rollout_states(env, act, aux0, episodes, k, steps))(key))  # fmt: skip
-    if out is None:
-        out = (Path(f"{spec.id}-{policy}.mp4") if run_dir is None
-               else run_dir / "videos" / f"{step}-{policy}.mp4")  # fmt: skip
     fps = max(1, round(1.0 / env.control_dt))
-    return write_video(env, physics, reward, done, out, fps, width, height,
-                       f"{spec.id} {policy}", shadows, camera, task_state)  # fmt: skip
+    return write_video(env, physics, reward, done, out, fps, width, height, title, shadows,
+                       camera, task_state)

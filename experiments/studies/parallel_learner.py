@@ -1,0 +1,153 @@
+"""FastTD3 + SIRL on h1hand-sit_simple-v0 against wall-clock, beside the TD-MPC2 study.
+
+    .venv/bin/python -m experiments.studies.parallel_learner --arm beta0    # 3 seeds, beta 0
+    .venv/bin/python -m experiments.studies.parallel_learner --arm beta1    # 3 seeds, beta 1
+    .venv/bin/python -m experiments.studies.parallel_learner --report \
+        --tdmpc2 results/sit_simple/study/tdmpc2 --out docs/results/parallel_learner
+
+An arm trains 3 seeds of the `fasttd3-cpu` preset (32 envs per seed, batch 1024, critic 512,
+actor 256; `sirl_jax/presets.py`) vmapped in one program, at beta 0 (FastTD3) or beta 1
+(FastTD3 + the TDMPBC term), evaluating the actor (eval mode, 4 episodes) every 10k env steps
+per seed. It resumes where it stopped (`experiments.paper.common.run_arm`), writing
+train.csv / eval.csv (with wall_s and process cpu_s) incrementally under `--results`.
+
+`--report` writes `<out>/summary.json` and `<out>/figure.png`: eval return against wall-clock
+hours and against process CPU hours for both arms and for the TD-MPC2 study's seeds
+(`experiments.studies.sit_simple`, planner eval), with the first time each seed reaches 10x
+the random policy's mean return (`--random`, the sit_simple study's random.json). Run the
+arms side by side, as the TD-MPC2 study's two arms ran, so that each has the same share of
+the machine.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import tyro
+
+from experiments.paper.common import run_arm
+from sirl_jax.config import Config
+from sirl_jax.presets import get_preset
+from sirl_jax.run.runlog import CsvLog
+
+TASK = "h1hand-sit_simple-v0"
+ARMS = {"beta0": 0.0, "beta1": 1.0}
+
+
+def config(beta: float, steps: int, num_envs: int = 32) -> Config:
+    """The `fasttd3-cpu` preset at `beta`, `steps` env steps per seed, 4 eval episodes every
+    10k, replay holding the whole run."""
+    cfg = get_preset("fasttd3-cpu")
+    sirl = dataclasses.replace(cfg.agent.sirl, beta=beta)
+    train = dataclasses.replace(cfg.train, task=TASK, steps=steps, num_envs=num_envs,
+                                buffer_size=steps, eval_every=10_000, eval_episodes=4)
+    return dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, sirl=sirl),
+                               train=train)  # fmt: skip
+
+
+def eval_curves(arm_dir: Path, column: str) -> dict[int, dict[str, np.ndarray]]:
+    """{seed: {"steps", "return", "wall_h", "cpu_h"}} of one arm's eval.csv."""
+    seeds: dict[int, dict[str, list]] = {}
+    for r in CsvLog(arm_dir / "eval.csv").rows():
+        d = seeds.setdefault(int(r["seed"]), {"steps": [], "return": [], "wall_h": [],
+                                              "cpu_h": []})  # fmt: skip
+        d["steps"].append(int(r["env_steps"]))
+        d["return"].append(float(r[column]) if r[column] != "" else np.nan)
+        d["wall_h"].append(float(r["wall_s"]) / 3600)
+        d["cpu_h"].append(float(r["cpu_s"]) / 3600)
+    return {s: {k: np.asarray(v) for k, v in d.items()} for s, d in sorted(seeds.items())}
+
+
+def hours_to(curve: dict[str, np.ndarray], bar: float, clock: str = "wall_h") -> float | None:
+    """The first evaluation's hours at which the return reaches `bar`; None if none does."""
+    hit = np.flatnonzero(curve["return"] >= bar)
+    return round(float(curve[clock][hit[0]]), 3) if hit.size else None
+
+
+def summarize(results: Path, tdmpc2: Path, random_json: Path) -> dict:
+    random = json.loads(random_json.read_text())
+    bar = 10 * random["mean"]
+    arms = {}
+    for arm in ARMS:
+        curves = eval_curves(results / arm, "policy_return")
+        arms[arm] = {"final": [float(c["return"][-1]) for c in curves.values()],
+                     "hours_to_10x": [hours_to(c, bar) for c in curves.values()],
+                     "cpu_hours_to_10x": [hours_to(c, bar, "cpu_h") for c in curves.values()],
+                     "final_steps": [int(c["steps"][-1]) for c in curves.values()]}  # fmt: skip
+    td = eval_curves(tdmpc2, "planner_return")
+    return {"task": TASK, "random_return": random["mean"], "arms": arms,
+            "tdmpc2_hours_to_10x": [hours_to(c, bar) for c in td.values()],
+            "tdmpc2_cpu_hours_to_10x": [hours_to(c, bar, "cpu_h") for c in td.values()],
+            "tdmpc2_final_steps": [int(c["steps"][-1]) for c in td.values()]}  # fmt: skip
+
+
+def figure(results: Path, tdmpc2: Path, bar: float, out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    series = [(results / "beta0", "policy_return", "tab:green", "FastTD3 (beta 0)"),
+              (results / "beta1", "policy_return", "tab:purple", "FastTD3 + SIRL (beta 1)"),
+              (tdmpc2, "planner_return", "tab:blue", "TD-MPC2 study (beta 0, planner)")]
+    for ax, clock, xlabel in ((axes[0], "wall_h", "wall-clock hours (arms side by side)"),
+                              (axes[1], "cpu_h", "process CPU hours (training)")):  # fmt: skip
+        for d, column, color, label in series:
+            for i, c in enumerate(eval_curves(d, column).values()):
+                ax.plot(c[clock], c["return"], color=color, marker=".", lw=1,
+                        label=label if i == 0 else None)  # fmt: skip
+        ax.axhline(bar, color="k", lw=0.8, label=f"10x random ({bar:.0f})")
+        ax.set_xlabel(xlabel)
+    axes[0].set_ylabel("eval return (eval mode, 4 episodes)")
+    axes[0].legend(fontsize=7, loc="upper left")
+    fig.suptitle(f"{TASK}: each seed's eval return against time, 2-core CPU")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+@dataclasses.dataclass(frozen=True)
+class Args:
+    arm: str | None = None
+    """beta0 or beta1: run (or resume) that arm."""
+    report: bool = False
+    """Write summary.json and figure.png from the arms' CSVs (partial ones too)."""
+    seeds: int = 3
+    steps: int = 200_000
+    num_envs: int = 32
+    results: str = "results/parallel_learner"
+    tdmpc2: str = "results/sit_simple/study/tdmpc2"
+    """The TD-MPC2 study arm drawn beside the FastTD3 arms."""
+    random: str = "results/sit_simple/random.json"
+    """The random policy's return on the task (`sit_simple --random-episodes 64`)."""
+    out: str = "docs/results/parallel_learner"
+
+
+def main(args: Args) -> None:
+    root = Path(args.results)
+    if args.arm:
+        if args.arm not in ARMS:
+            raise SystemExit(f"error: --arm {args.arm!r} is unknown; allowed: {', '.join(ARMS)}")
+        run_arm(config(ARMS[args.arm], args.steps, args.num_envs), args.seeds, root / args.arm,
+                f"fasttd3 {args.arm}")  # fmt: skip
+    if args.report:
+        out, tdmpc2 = Path(args.out), Path(args.tdmpc2)
+        summary = summarize(root, tdmpc2, Path(args.random))
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+        figure(root, tdmpc2, 10 * summary["random_return"], out / "figure.png")
+        for arm, v in summary["arms"].items():
+            print(f"{arm}: final {np.round(v['final'], 1)} at {v['final_steps']} steps, hours to "
+                  f"10x {v['hours_to_10x']} (CPU hours {v['cpu_hours_to_10x']})")  # fmt: skip
+        print(f"TD-MPC2: hours to 10x {summary['tdmpc2_hours_to_10x']} (CPU hours "
+              f"{summary['tdmpc2_cpu_hours_to_10x']})")
+        print(f"wrote {out / 'summary.json'} and {out / 'figure.png'}")
+
+
+if __name__ == "__main__":
+    main(tyro.cli(Args))
