@@ -206,3 +206,31 @@ def test_goal_markers_come_from_the_task_state_of_the_named_tasks():
     scene = mujoco.MjvScene(model, maxgeom=2)
     assert markers.add_markers(scene, np.zeros((3, 3))) == 2 and scene.ngeom == 2
     np.testing.assert_allclose(scene.geoms[0].size, [markers.GOAL_RADIUS] * 3)
+
+
+def test_blob_shadows_sit_under_the_bodies_turned_and_fading_with_height():
+    import mujoco
+
+    from sirl_jax.run import markers
+
+    xml = """<mujoco><worldbody>
+      <body name="pelvis" pos="0.3 -0.2 1.0" euler="0 0 90"><freejoint/>
+        <geom size="0.1"/></body>
+      <body name="left_ankle_link" pos="1 1 0.1"><geom size="0.05"/></body>
+      <body name="right_ankle_link" pos="-1 0 0.5"><geom size="0.05"/></body>
+    </worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    scene = mujoco.MjvScene(model, maxgeom=10)
+    # the right foot is 0.5 m up, past its 0.4 m fade: no disc for it
+    assert markers.add_blob_shadows(scene, model, data) == 2
+    pelvis, foot = scene.geoms[0], scene.geoms[1]
+    np.testing.assert_allclose(pelvis.pos, [0.3, -0.2, 0.002], atol=1e-9)
+    np.testing.assert_allclose(pelvis.size, [0.28, 0.22, 0.001], atol=1e-9)
+    # yawed 90 degrees: the disc's long axis points along world y
+    np.testing.assert_allclose(pelvis.mat.reshape(3, 3)[:, 0], [0, 1, 0], atol=1e-6)
+    assert pelvis.rgba[3] == pytest.approx(0.28 * (1 - 1.0 / 2.0))
+    assert foot.rgba[3] == pytest.approx(0.45 * (1 - 0.1 / 0.4))
+    full = mujoco.MjvScene(model, maxgeom=1)
+    assert markers.add_blob_shadows(full, model, data) == 1  # never past the scene's room

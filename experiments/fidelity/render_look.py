@@ -5,8 +5,8 @@
 Each task is drawn at its reset keyframe (no rollout, no training). Top row: the scene model
 the env simulates with the previous camera (MuJoCo's tracking camera on the pelvis, 4 m,
 azimuth 135°, elevation -15°) and MuJoCo's default geom groups, as `render` drew before issue
-30. Bottom row: `render`'s current defaults: the render-only model (`scene_look.render_model`)
-and the `track` camera. It draws, it times nothing.
+30. Bottom row: `render`'s current defaults: the render-only model (`scene_look.render_model`),
+the `track` camera and blob shadows. It draws, it times nothing.
 """
 
 from __future__ import annotations
@@ -49,8 +49,12 @@ def _draw(model, camera, option, width: int, height: int):
         camera = track.view(model, data)
     renderer = mujoco.Renderer(model, height, width)
     try:
-        renderer.update_scene(data, camera, option)
-        return renderer.render()
+        if option is None:  # the previous renderer: MuJoCo's defaults, shadow maps on
+            renderer.update_scene(data, camera)
+            return renderer.render()
+        from sirl_jax.run.render import draw
+
+        return draw(renderer, model, data, camera, option)
     finally:
         renderer.close()
 

@@ -46,8 +46,9 @@ class RenderArgs:
     """Stop each episode after this many control steps (default: the task's T)."""
     width: int = 640
     height: int = 480
-    shadows: bool = True
-    """--no-shadows: skip shadows and reflections (about 3.4x faster without a GPU)."""
+    shadows: bool = False
+    """--shadows: MuJoCo's shadow maps and floor reflections (about 2.5x slower without a
+    GPU); by default blob shadows under the robot."""
     camera: str = "track"
     """track (follows the robot and the task's objects) | side | front | back | top (fixed for
     an episode, framing all of it) | a camera the task's model names."""

@@ -25,7 +25,7 @@ from typing import Any
 
 from sirl_jax.run.camera import Camera, check_camera
 from sirl_jax.run.errors import UsageError
-from sirl_jax.run.markers import add_markers, goal_points
+from sirl_jax.run.markers import add_blob_shadows, add_markers, goal_points
 from sirl_jax.run.scene_look import render_model, scene_option
 
 _GL_LIBS = {
@@ -101,16 +101,31 @@ def _caption(frame, text: str):
     return image
 
 
+def draw(renderer, model, data, camera, option, goals=(), shadows: bool = False):
+    """One frame of `data` (forwarded) from `camera`: the scene, the goal markers, and either
+    MuJoCo's shadow maps and reflections or blob shadows (`markers.add_blob_shadows`)."""
+    import mujoco
+
+    renderer.update_scene(data, camera, option)
+    add_markers(renderer.scene, goals)
+    if not shadows:
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
+        add_blob_shadows(renderer.scene, model, data)
+    return renderer.render()
+
+
 def write_video(env, physics, reward, done, out: Path, fps: int, width: int, height: int,
-                title: str, shadows: bool = True, camera: str = "track",
+                title: str, shadows: bool = False, camera: str = "track",
                 task_state: Any = None) -> dict[str, Any]:  # fmt: skip
     """Draws every episode's frames (up to its first end) into `out`; returns a summary.
 
     camera: `camera.VIEWS` or one of the model's cameras (`camera.Camera`). task_state: the
     task state of every step (leaves [steps, N, ...]); its goals are drawn (`markers.py`).
 
-    shadows=False also drops reflections: about 3.4x faster on a software rasteriser (OSMesa,
-    h1hand-hurdle at 640x480: 22 instead of 6.5 frames/s drawn).
+    shadows: MuJoCo's shadow maps and floor reflections, about 2.5x slower on a software
+    rasteriser (OSMesa); without them (the default) blob shadows ground the robot
+    (`markers.add_blob_shadows`). Frames/s of both: experiments/bench/bench_render.py.
     """
     import imageio.v2 as imageio
     import jax
@@ -133,8 +148,9 @@ def write_video(env, physics, reward, done, out: Path, fps: int, width: int, hei
     # imageio starts ffmpeg with fork+exec; JAX warns about any fork, harmlessly here.
     warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called", category=RuntimeWarning)
     try:
-        with imageio.get_writer(out, fps=fps, codec="libx264", quality=7,
-                                macro_block_size=1) as writer:  # fmt: skip
+        # x264's veryfast preset: about 2x the encoding rate of its default at the same size
+        with imageio.get_writer(out, fps=fps, codec="libx264", quality=7, macro_block_size=1,
+                                ffmpeg_params=["-preset", "veryfast"]) as writer:  # fmt: skip
             for ep in range(episodes):
                 ended = np.flatnonzero(done[:, ep])
                 length = int(ended[0]) + 1 if ended.size else steps
@@ -152,14 +168,11 @@ def write_video(env, physics, reward, done, out: Path, fps: int, width: int, hei
                     copy_state(model, data, qpos[t, ep], qvel[t, ep], *extra)
                     goals = goal_points(env, None if task_state is None else jax.tree.map(
                         lambda x, t=t, ep=ep: x[t, ep], task_state))  # fmt: skip
-                    renderer.update_scene(data, view.view(model, data, goals), option)
-                    add_markers(renderer.scene, goals)
-                    if not shadows:
-                        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-                        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
+                    frame = draw(renderer, model, data, view.view(model, data, goals), option,
+                                 goals, shadows)  # fmt: skip
                     text = (f"{title}  episode {ep + 1}/{episodes}  step {t}  "
                             f"return {total:.1f}")  # fmt: skip
-                    writer.append_data(np.asarray(_caption(renderer.render(), text)))
+                    writer.append_data(np.asarray(_caption(frame, text)))
                     total += float(reward[t, ep])
                     frames += 1
                 returns.append(total)
@@ -192,7 +205,7 @@ def render_command(args, backend: str) -> None:
 
 def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes: int,
            policy: str, out: Path | None, max_steps: int | None, width: int, height: int,
-           shadows: bool = True, seed: int = 0,
+           shadows: bool = False, seed: int = 0,
            camera: str = "track") -> dict[str, Any]:  # fmt: skip
     """The body of `render` (call `select_gl` first). A run's video goes to
     RUN_DIR/videos/<step>-<policy>.mp4 by default, where `report` finds it."""
@@ -240,7 +253,7 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
 
 def render_policy(env, agent, agent_state, policy: str, episodes: int, key, out: Path,
                   title: str, *, max_steps: int | None = None, width: int = 640,
-                  height: int = 480, shadows: bool = True,
+                  height: int = 480, shadows: bool = False,
                   camera: str = "track") -> dict[str, Any]:  # fmt: skip
     """Rolls out `policy` (planner or prior in eval mode, or random; `agent_state` of one
     seed) for `episodes` episodes of at most `max_steps` steps and writes their mp4 to `out`
