@@ -7,36 +7,37 @@ here: the fork runs from a checkout outside this repository, in a venv of its ow
 module only launches it, applies the few compatibility patches below in the child process at
 run time (the checkout stays as extracted), and writes the evals in our CSV format.
 
-Setup (once; paths are examples, both outside the repository)::
+Setup (once; SNAPSHOT is a git directory of carlosferrazza/humanoid-bench, CHECKOUT and REFENV
+any two folders outside the repository)::
 
     # the checkout: HumanoidBench's repository at 791405f (the snapshot's HEAD). Eight blobs
     # (data/reach_*/{mean,var}.npy, three kitchen/plywood PNGs, logs/main_results.json) are
     # absent from the snapshot and not needed by this task, so they are excluded (git still
     # prints one "invalid object" error for them; the extraction is complete and exits 0):
-    R=/work/.mirror/carlosferrazza+humanoid-bench/repo; mkdir -p /work/hbref
-    git -C $R archive HEAD -- . $(for p in data/reach_one_hand/mean.npy \\
+    mkdir -p CHECKOUT
+    git -C SNAPSHOT archive HEAD -- . $(for p in data/reach_one_hand/mean.npy \\
         data/reach_one_hand/var.npy data/reach_two_hands/mean.npy data/reach_two_hands/var.npy \\
         humanoid_bench/assets/kitchen/adept_models/kitchen/textures/wood1.png \\
         humanoid_bench/assets/tasks/assets/kitchen-wood.png \\
         humanoid_bench/assets/tasks/assets/plywood-4k.png logs/main_results.json; \\
-        do echo ":(exclude)$p"; done) | tar -x -C /work/hbref
+        do echo ":(exclude)$p"; done) | tar -x -C CHECKOUT
     # the venv: the CPU torch wheel, then the newest tensordict/torchrl that take it, and
     # HumanoidBench's pins where the env needs them (gymnasium 0.29.1's MujocoEnv API, the
     # mujoco/dm_control pair of its setup.py); numpy < 2 for gymnasium 0.29.1's env checker
-    python3 -m venv /work/refenv
-    /work/refenv/bin/pip install /opt/wheels/torch-2.13.0+cpu-cp311-cp311-manylinux_2_28_x86_64.whl
-    /work/refenv/bin/pip install "numpy<2" tensordict torchrl gymnasium==0.29.1 mujoco==3.1.6 \\
+    python3 -m venv REFENV
+    REFENV/bin/pip install torch==2.13.0+cpu  # the CPU wheel (not PyPI's CUDA build)
+    REFENV/bin/pip install "numpy<2" tensordict torchrl gymnasium==0.29.1 mujoco==3.1.6 \\
         dm_control==1.0.20 hydra-core==1.3.2 hydra-submitit-launcher==1.2.0 termcolor pandas \\
         jax imageio
-    /work/refenv/bin/pip install --no-deps -e /work/hbref -e /work/hbref/tdmpc2
+    REFENV/bin/pip install --no-deps -e CHECKOUT -e CHECKOUT/tdmpc2
     # what this resolved to: torch 2.13.0+cpu, tensordict 0.14.3, torchrl 0.14.1, numpy
     # 1.26.4, gymnasium 0.29.1, mujoco 3.1.6, dm_control 1.0.20, hydra-core 1.3.2, omegaconf
     # 2.3.1, jax 0.7.1 (humanoid_bench imports jax.numpy at import time), pandas 3.0.6
 
 Run (the study's 100k env steps; about 2.5 hours on 2 busy cores, see the measured rate below)::
 
-    .venv/bin/python -m experiments.studies.official_tdmpc2 --checkout /work/hbref \\
-        --python /work/refenv/bin/python
+    .venv/bin/python -m experiments.studies.official_tdmpc2 --checkout CHECKOUT \\
+        --python REFENV/bin/python
 
 It writes `--out` (default results/sit_simple/official/eval.csv; one row per eval, as it
 happens), train.csv (one row per training episode) and console.log beside it, and the fork's
