@@ -5,10 +5,11 @@
 Rolls out uniform random actions in MJX for `--frames` control steps (1 episode, not timed),
 then times `write_video` (state copy + mj_forward + update_scene + render + caption + H.264
 encode) on the same states, side by side in one run, round-robin over `--rounds`:
-  previous   the renderer before the speed work: MuJoCo's shadow maps and reflections, and
-             its default tessellation (28 slices x 16 stacks);
-  default    `render`'s defaults now: blob shadows, `scene_look.TESSELLATION`;
-  --shadows  the defaults with shadow maps and reflections.
+  previous     the renderer before the speed work: MuJoCo's shadow maps and reflections, its
+               default tessellation (28 slices x 16 stacks) and 4x multisampling;
+  default      `render`'s defaults now: blob shadows, `scene_look.TESSELLATION`, no MSAA;
+  --antialias  the defaults with 4x multisampling;
+  --shadows    the defaults with shadow maps and reflections.
 and the draw alone (update_scene + render) of each. Run it on an otherwise idle machine.
 """
 
@@ -31,7 +32,7 @@ PREVIOUS_TESSELLATION = (28, 16)  # MuJoCo's default, what `render` drew with be
 @dataclasses.dataclass(frozen=True)
 class Args:
     task: str = "hurdle"
-    frames: int = 150
+    frames: int = 200
     width: int = 640
     height: int = 480
     rounds: int = 3
@@ -57,21 +58,24 @@ def main(args: Args) -> None:
         lambda k: rollout_states(env, act, None, 1, k, args.frames))(jax.random.PRNGKey(0)))
     done = np.zeros_like(done)  # draw every step, even past a fall
     qpos, qvel = np.asarray(physics.qpos), np.asarray(physics.qvel)
-    cases = {"previous": (PREVIOUS_TESSELLATION, True),
-             "default": (scene_look.TESSELLATION, False),
-             "--shadows": (scene_look.TESSELLATION, True)}  # fmt: skip
+    # name: (tessellation, shadow maps, 4x MSAA)
+    cases = {"previous": (PREVIOUS_TESSELLATION, True, True),
+             "default": (scene_look.TESSELLATION, False, False),
+             "--antialias": (scene_look.TESSELLATION, False, True),
+             "--shadows": (scene_look.TESSELLATION, True, False)}  # fmt: skip
 
-    def written(tessellation, shadows) -> float:
+    def written(tessellation, shadows, antialias) -> float:
         with mock.patch.object(scene_look, "TESSELLATION", tessellation):
             with tempfile.TemporaryDirectory() as tmp:
                 t0 = time.perf_counter()
                 summary = write_video(env, physics, reward, done, Path(tmp) / "b.mp4", 50,
-                                      args.width, args.height, spec.id, shadows)  # fmt: skip
+                                      args.width, args.height, spec.id, shadows,
+                                      antialias=antialias)  # fmt: skip
                 return summary["frames"] / (time.perf_counter() - t0)
 
-    def drawn(tessellation, shadows) -> float:
+    def drawn(tessellation, shadows, antialias) -> float:
         with mock.patch.object(scene_look, "TESSELLATION", tessellation):
-            model = scene_look.render_model(env)
+            model = scene_look.render_model(env, antialias)
         data, option = mujoco.MjData(model), scene_look.scene_option()
         renderer = mujoco.Renderer(model, args.height, args.width)
         camera = Camera(model, "track", args.width, args.height)
@@ -88,17 +92,18 @@ def main(args: Args) -> None:
 
     rates = {(name, what): [] for name in cases for what in ("written", "drawn")}
     for _ in range(args.rounds):
-        for name, (tess, shadows) in cases.items():
-            rates[(name, "written")].append(written(tess, shadows))
-            rates[(name, "drawn")].append(drawn(tess, shadows))
+        for name, case in cases.items():
+            rates[(name, "written")].append(written(*case))
+            rates[(name, "drawn")].append(drawn(*case))
     med = {k: statistics.median(v) for k, v in rates.items()}
     print(f"\n{spec.id}, {args.width}x{args.height}, MUJOCO_GL={backend}, {args.frames} frames, "
           f"median of {args.rounds} rounds")
-    print("| renderer | tessellation | shadows | frames/s written | frames/s drawn alone |")
-    print("|---|---|---|---:|---:|")
-    for name, (tess, shadows) in cases.items():
+    print("| renderer | tessellation | shadows | MSAA | frames/s written | frames/s drawn alone |")
+    print("|---|---|---|---|---:|---:|")
+    for name, (tess, shadows, antialias) in cases.items():
         print(f"| {name} | {tess[0]} x {tess[1]} | {'maps' if shadows else 'blobs'} | "
-              f"{med[(name, 'written')]:.1f} | {med[(name, 'drawn')]:.1f} |")
+              f"{'4x' if antialias else 'off'} | {med[(name, 'written')]:.1f} | "
+              f"{med[(name, 'drawn')]:.1f} |")
     ratio = statistics.median(d / p for d, p in zip(rates[("default", "written")],
                                                    rates[("previous", "written")], strict=True))
     print(f"default / previous, frames/s written (median of per-round ratios): {ratio:.2f}x")

@@ -49,6 +49,8 @@ class RenderArgs:
     shadows: bool = False
     """--shadows: MuJoCo's shadow maps and floor reflections (about 2.5x slower without a
     GPU); by default blob shadows under the robot."""
+    antialias: bool = False
+    """--antialias: 4x multisampling (about 2.3x slower without a GPU, free with one)."""
     camera: str = "track"
     """track (follows the robot and the task's objects) | side | front | back | top (fixed for
     an episode, framing all of it) | a camera the task's model names."""

@@ -117,7 +117,7 @@ def draw(renderer, model, data, camera, option, goals=(), shadows: bool = False)
 
 def write_video(env, physics, reward, done, out: Path, fps: int, width: int, height: int,
                 title: str, shadows: bool = False, camera: str = "track",
-                task_state: Any = None) -> dict[str, Any]:  # fmt: skip
+                task_state: Any = None, antialias: bool = False) -> dict[str, Any]:  # fmt: skip
     """Draws every episode's frames (up to its first end) into `out`; returns a summary.
 
     camera: `camera.VIEWS` or one of the model's cameras (`camera.Camera`). task_state: the
@@ -125,14 +125,15 @@ def write_video(env, physics, reward, done, out: Path, fps: int, width: int, hei
 
     shadows: MuJoCo's shadow maps and floor reflections, about 2.5x slower on a software
     rasteriser (OSMesa); without them (the default) blob shadows ground the robot
-    (`markers.add_blob_shadows`). Frames/s of both: experiments/bench/bench_render.py.
+    (`markers.add_blob_shadows`). antialias: 4x MSAA (`scene_look.MSAA_SAMPLES`), about 2.3x
+    slower without a GPU. Frames/s of each: experiments/bench/bench_render.py.
     """
     import imageio.v2 as imageio
     import jax
     import mujoco
     import numpy as np
 
-    model = render_model(env)
+    model = render_model(env, antialias)
     option = scene_option()
     data = mujoco.MjData(model)
     qpos, qvel = np.asarray(physics.qpos), np.asarray(physics.qvel)
@@ -197,7 +198,8 @@ def render_command(args, backend: str) -> None:
         Path(args.run) if args.run else None, task=args.task, step=args.step,
         episodes=args.episodes, policy="random" if args.random else args.policy,
         out=Path(args.out) if args.out else None, max_steps=args.max_steps, width=args.width,
-        height=args.height, shadows=args.shadows, camera=args.camera)  # fmt: skip
+        height=args.height, shadows=args.shadows, camera=args.camera,
+        antialias=args.antialias)  # fmt: skip
     returns = ", ".join(f"{r:.1f}" for r in summary["returns"])
     print(f"wrote {summary['out']}: {summary['frames']} frames ({args.width}x{args.height}, "
           f"MUJOCO_GL={backend}), episode returns {returns}")  # fmt: skip
@@ -205,8 +207,8 @@ def render_command(args, backend: str) -> None:
 
 def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes: int,
            policy: str, out: Path | None, max_steps: int | None, width: int, height: int,
-           shadows: bool = False, seed: int = 0,
-           camera: str = "track") -> dict[str, Any]:  # fmt: skip
+           shadows: bool = False, seed: int = 0, camera: str = "track",
+           antialias: bool = False) -> dict[str, Any]:  # fmt: skip
     """The body of `render` (call `select_gl` first). A run's video goes to
     RUN_DIR/videos/<step>-<policy>.mp4 by default, where `report` finds it."""
     import jax
@@ -248,13 +250,14 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
                else run_dir / "videos" / f"{step}-{policy}.mp4")  # fmt: skip
     return render_policy(env, agent, agent_state, policy, episodes, eval_key(seed, step or 0),
                          out, f"{spec.id} {policy}", max_steps=max_steps, width=width,
-                         height=height, shadows=shadows, camera=camera)  # fmt: skip
+                         height=height, shadows=shadows, camera=camera,
+                         antialias=antialias)  # fmt: skip
 
 
 def render_policy(env, agent, agent_state, policy: str, episodes: int, key, out: Path,
                   title: str, *, max_steps: int | None = None, width: int = 640,
-                  height: int = 480, shadows: bool = False,
-                  camera: str = "track") -> dict[str, Any]:  # fmt: skip
+                  height: int = 480, shadows: bool = False, camera: str = "track",
+                  antialias: bool = False) -> dict[str, Any]:  # fmt: skip
     """Rolls out `policy` (planner or prior in eval mode, or random; `agent_state` of one
     seed) for `episodes` episodes of at most `max_steps` steps and writes their mp4 to `out`
     (call `select_gl` first); returns `write_video`'s summary."""
@@ -278,4 +281,4 @@ def render_policy(env, agent, agent_state, policy: str, episodes: int, key, out:
         lambda k: rollout_states(env, act, aux0, episodes, k, steps))(key))  # fmt: skip
     fps = max(1, round(1.0 / env.control_dt))
     return write_video(env, physics, reward, done, out, fps, width, height, title, shadows,
-                       camera, task_state)
+                       camera, task_state, antialias)

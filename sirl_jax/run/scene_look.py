@@ -25,6 +25,9 @@ TESSELLATION = (16, 8)
 """Slices and stacks of the drawn spheres, capsules and cylinders (MuJoCo's default: 28, 16).
 A software rasteriser's draw is bound by triangles: 16 x 8 draws h1hand-walk 1.4x faster at
 640x480 (experiments/bench/bench_render.py), and its capsules still read as round."""
+MSAA_SAMPLES = 4
+"""Multisampling of `render --antialias`. Off by default: on a software rasteriser (OSMesa) 4x
+MSAA costs 2.3x the draw of h1hand-hurdle at 640x480; on a GPU it is free."""
 """The geom group of the render-only housings (MuJoCo draws groups 0-2 by default)."""
 HIDDEN_GROUP = 4
 FIXTURE_GROUP = 1
@@ -159,9 +162,10 @@ def same_layout(a, b) -> bool:
             and np.array_equal(a.body_parentid, b.body_parentid))  # fmt: skip
 
 
-def render_model(env):
-    """The model to draw `env` with: the dressed rebuild of its scene, or its own model when the
-    env is not an H1 task (or the rebuild does not match it)."""
+def render_model(env, antialias: bool = False):
+    """The model to draw `env` with: the dressed rebuild of its scene (multisampled with
+    `antialias`), or its own model when the env is not an H1 task (or the rebuild does not
+    match it)."""
     from sirl_jax.envs import h1
 
     task, variant = getattr(env, "task", None), getattr(env, "variant", None)
@@ -181,6 +185,7 @@ def render_model(env):
     if not same_layout(model, env.mj_model):
         return env.mj_model
     model.vis.quality.numslices, model.vis.quality.numstacks = TESSELLATION
+    model.vis.quality.offsamples = MSAA_SAMPLES if antialias else 0
     return model
 
 
@@ -195,4 +200,7 @@ def scene_option():
     return option
 
 
-__all__ = ["TESSELLATION", "VISUAL_GROUP", "dress", "render_model", "same_layout", "scene_option"]
+__all__ = [
+    "MSAA_SAMPLES", "TESSELLATION", "VISUAL_GROUP", "dress", "render_model", "same_layout",
+    "scene_option",
+]
