@@ -1,0 +1,439 @@
+"""Our tasks against HumanoidBench itself, state by state: contacts and rewards.
+
+For each task, `--states` states are drawn on our side and scored by both implementations:
+
+- States. Episodes start from our env's `reset` (keyframe 0 + U(+-0.01) noise + the task's
+  randomisation, e.g. push's goal, cube's orientations) and roll uniform random actions in
+  MuJoCo C on our compiled model (`env.mj_model`, the model MJX simulates), with our control
+  mapping ctrl = low + (a + 1)/2 (high - low) over each actuator's ctrlrange (HumanoidBench's
+  `unnormalize_action`; all 61 are position actuators), 10 `mj_step`s per control step. An
+  episode ends when the pelvis falls (qpos z < 0.5) or after `--episode-steps` control steps;
+  every `--every`th control step's (qpos, qvel, ctrl) is kept, with the episode's task state.
+- Our reward: the task's `evaluate` (the code training runs), vmapped in one jit per task over
+  `mjx.forward` of (qpos, qvel, ctrl), with the episode's reset task state. A task whose task
+  state holds stages or counters gets the reset one ("stages not forced" in the notes).
+- HumanoidBench: `hb_side.py` under REFENV's Python (`--python`): HumanoidBench's own env
+  (`gymnasium.make`), qpos/qvel/ctrl written joint by joint and actuator by actuator by NAME
+  (`RENAME` holds per-task name maps where names differ; joints without a partner are
+  reported), the hidden task state written where HumanoidBench keeps it (`HIDDEN`: push's goal,
+  cube's target orientation in the model's body_quat), then `mj_forward` and the task's
+  `get_reward()` and `get_terminated()`.
+- Contacts: on our side MuJoCo C's `mj_forward` contacts on our own model (not MJX's: MJX's
+  own contact differences are `contact_parity`'s subject), on HumanoidBench's side its
+  `data.contact`; every contact in `d.contact[:ncon]` counts, as HumanoidBench's rules read them.
+  Each geom gets a role from its body, in each model separately (so obstacles need not share
+  names): robot = the subtree of `pelvis`, hand = the subtrees of `left_hand`/`right_hand`,
+  object = a body with a free joint that is not the robot (and its subtree), floor = the
+  `floor` geom (or a plane on the world), static = any other geom (fixtures in manipulation
+  tasks: table, shelves...; obstacles in locomotion tasks: hurdles, walls, poles...). Classes:
+  robot-fixture / robot-obstacle, hand-object, object-object (the issue's bar classes), and
+  robot-floor, robot-object (non-hand), object-fixture, object-floor (reported, no bar).
+  Agreement of a class = the fraction of states where both sides agree on whether any contact
+  of the class exists; "n/a" where no state fires on either side.
+
+Bars (issue 29): contact agreement >= 99% per class; reward median |d| <= 0.005 and
+p95 <= 0.02 in exact mode (`hb_compat="exact"`, the default).
+
+    .venv/bin/python -m experiments.fidelity.hb_parity --python REFENV/bin/python \
+        --tasks push,cube,walk [--states 500] [--out docs/results/hb_parity.json]
+        [--hb-checkout CHECKOUT] [--every 4] [--episode-steps 100] [--seed 0] [--keep DIR]
+
+Tasks are short names (`push`) or ids (`h1hand-push-v0`). Prints one table row per task:
+states, agreement per class, reward median and p95 |d|, termination agreement, notes (classes
+under 99%, unmapped joints, how the task state travelled); writes the results keyed by task to
+`--out`, merged into what the file already holds (with per-side fire counts, the most frequent
+disagreeing body pairs, and per-term |d| of the reward terms both sides name alike). `--keep`
+keeps the exchanged .npz files (our states, HumanoidBench's answers).
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import mjx
+
+from sirl_jax.envs import load
+from sirl_jax.run.compile_cache import enable_compilation_cache
+
+HB_SIDE = Path(__file__).with_name("hb_side.py")
+RENAME: dict[str, dict[str, str]] = {}
+"""Per-task joint renames, our name -> HumanoidBench's. Empty: the H1's joints and the objects'
+free joints of the tasks checked so far carry the same names in both models."""
+HIDDEN: dict[str, str] = {"push": "attr:goal", "cube": "body_quat:target_cube"}
+"""Where HumanoidBench keeps the task state that our task state carries (see hb_side.py)."""
+ROBOT_ROOT, HANDS, FLOOR = "pelvis", ("left_hand", "right_hand"), "floor"
+FALL_Z = 0.5
+BAR_AGREEMENT, BAR_MEDIAN, BAR_P95 = 0.99, 0.005, 0.02
+CLASSES = ("robot-static", "hand-object", "object-object",
+           "robot-floor", "robot-object", "object-static", "object-floor")  # fmt: skip
+BAR_CLASSES = ("robot-static", "hand-object", "object-object")
+
+
+# -- roles and contact classes, one function for both models --------------------------------
+def tables(m: mujoco.MjModel) -> dict[str, np.ndarray]:
+    """The model tables `roles` reads (hb_side.py writes the same for HumanoidBench's model)."""
+    free = np.zeros(m.nbody, bool)
+    for j in range(m.njnt):
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            free[m.jnt_bodyid[j]] = True
+    return {
+        "geom_name": np.array([m.geom(g).name for g in range(m.ngeom)]),
+        "geom_body": np.asarray(m.geom_bodyid, np.int64),
+        "geom_type": np.asarray(m.geom_type, np.int64),
+        "body_name": np.array([m.body(b).name for b in range(m.nbody)]),
+        "body_parent": np.asarray(m.body_parentid, np.int64),
+        "body_weldid": np.asarray(m.body_weldid, np.int64),
+        "body_free": np.asarray(free),
+    }
+
+
+def roles(t: dict[str, np.ndarray]) -> tuple[list[str], list[str]]:
+    """([ngeom] role, [ngeom] label): role in {hand, robot, object, floor, static}; label =
+    the body name, or the geom name for a geom welded to the world."""
+    names = [str(x) for x in t["body_name"]]
+    parent = t["body_parent"]
+
+    def under(b: int, roots: set[int]) -> bool:
+        while b > 0:
+            if b in roots:
+                return True
+            b = int(parent[b])
+        return False
+
+    robot = {names.index(ROBOT_ROOT)}
+    hands = {names.index(h) for h in HANDS}
+    objects = {b for b in range(len(names)) if t["body_free"][b] and b not in robot}
+    out_role, out_label = [], []
+    for g, (gname, b) in enumerate(zip(t["geom_name"], t["geom_body"], strict=True)):
+        b, gname = int(b), str(gname)
+        if under(b, hands):
+            role = "hand"
+        elif under(b, robot):
+            role = "robot"
+        elif under(b, objects):
+            role = "object"
+        elif gname == FLOOR or (b == 0 and t["geom_type"][g] == mujoco.mjtGeom.mjGEOM_PLANE):
+            role = "floor"
+        else:
+            role = "static"
+        out_role.append(role)
+        welded = int(t["body_weldid"][b]) == 0
+        out_label.append((gname or f"geom{g}") if welded else names[b])
+    return out_role, out_label
+
+
+def contact_class(r1: str, r2: str) -> str | None:
+    a, b = sorted((r1, r2))
+    pair = {a, b}
+    if pair == {"hand", "object"}:
+        return "hand-object"
+    if a == b == "object":
+        return "object-object"
+    if "object" in pair:
+        other = (pair - {"object"}).pop()
+        return {"robot": "robot-object", "static": "object-static", "floor": "object-floor"}.get(
+            other
+        )
+    if pair & {"hand", "robot"}:
+        other = pair - {"hand", "robot"}
+        if other == {"static"}:
+            return "robot-static"
+        if other == {"floor"}:
+            return "robot-floor"
+    return None  # robot-robot, static-floor, ...
+
+
+def classify(t, state, g1, g2, n):
+    """({class: [n] bool fired}, {class: [n] Counter of label pairs})."""
+    role, label = roles(t)
+    fired = {c: np.zeros(n, bool) for c in CLASSES}
+    pairs = {c: [collections.Counter() for _ in range(n)] for c in CLASSES}
+    for i, a, b in zip(state, g1, g2, strict=True):
+        c = contact_class(role[a], role[b])
+        if c is None:
+            continue
+        fired[c][i] = True
+        pairs[c][i]["|".join(sorted((label[a], label[b])))] += 1
+    return fired, pairs
+
+
+# -- our side ---------------------------------------------------------------------------------
+def draw_states(env, n: int, every: int, episode_steps: int, seed: int):
+    """(qpos [n, nq], qvel [n, nv], ctrl [n, nu], task state tree [n, ...], episodes)."""
+    m = env.mj_model
+    d = mujoco.MjData(m)
+    low, high = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
+    rng = np.random.default_rng(seed)
+    reset = jax.jit(jax.vmap(env.reset))
+    batch, key = 64, jax.random.PRNGKey(seed)
+    rows, task_rows, episodes = [], [], 0
+    while len(rows) < n:
+        key, sub = jax.random.split(key)
+        starts = reset(jax.random.split(sub, batch))
+        qpos0 = np.asarray(starts.physics.qpos, np.float64)
+        for e in range(batch):
+            if len(rows) >= n:
+                break
+            episodes += 1
+            mujoco.mj_resetData(m, d)
+            d.qpos[:] = qpos0[e]
+            for step in range(episode_steps):
+                d.ctrl[:] = low + (rng.uniform(-1, 1, m.nu) + 1) / 2 * (high - low)
+                mujoco.mj_step(m, d, nstep=10)
+                if step % every == every - 1:
+                    rows.append((d.qpos.copy(), d.qvel.copy(), d.ctrl.copy()))
+                    task_rows.append(jax.tree.map(lambda x, e=e: np.asarray(x[e]), starts.task))
+                if len(rows) >= n or d.qpos[2] < FALL_Z or not np.isfinite(d.qpos).all():
+                    break
+    qpos, qvel, ctrl = (np.stack([r[k] for r in rows]) for k in range(3))
+    task = jax.tree.map(lambda *xs: np.stack(xs), *task_rows)
+    return qpos, qvel, ctrl, task, episodes
+
+
+def our_rewards(env, qpos, qvel, ctrl, task, chunk: int = 250):
+    """[n] reward, [n] terminated, {metric: [n]} from `env.task.evaluate` after `mjx.forward`."""
+    mx = env.mx
+
+    @jax.jit
+    def score(qp, qv, u, ts):
+        def one(qp, qv, u, ts):
+            d = mjx.make_data(mx).replace(qpos=qp, qvel=qv, ctrl=u)
+            d = mjx.forward(mx, d)
+            reward, terminated, _, metrics = env.task.evaluate(env.robot, d, ts)
+            return reward, terminated, metrics
+
+        return jax.vmap(one)(qp, qv, u, ts)
+
+    n = len(qpos)
+    pad = (-n) % chunk
+    padded = [np.concatenate([x, np.repeat(x[-1:], pad, 0)]) for x in (qpos, qvel, ctrl)]
+    task = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], pad, 0)]), task)
+    outs = []
+    for i in range(0, n + pad, chunk):
+        part = [jnp.asarray(x[i : i + chunk], jnp.float32) for x in padded]
+        ts = jax.tree.map(lambda x, i=i: jnp.asarray(x[i : i + chunk]), task)
+        outs.append(jax.device_get(score(*part, ts)))
+    reward = np.concatenate([o[0] for o in outs])[:n]
+    terminated = np.concatenate([o[1] for o in outs])[:n]
+    metrics = {k: np.concatenate([o[2][k] for o in outs])[:n] for k in outs[0][2]}
+    return reward, terminated, metrics
+
+
+def our_contacts(m: mujoco.MjModel, qpos, qvel, ctrl):
+    d = mujoco.MjData(m)
+    state, g1, g2 = [], [], []
+    for i in range(len(qpos)):
+        d.qpos[:], d.qvel[:], d.ctrl[:] = qpos[i], qvel[i], ctrl[i]
+        mujoco.mj_forward(m, d)
+        for c in d.contact[: d.ncon]:
+            state.append(i)
+            g1.append(int(c.geom1))
+            g2.append(int(c.geom2))
+    return state, g1, g2
+
+
+# -- comparison -------------------------------------------------------------------------------
+def _stats(delta: np.ndarray) -> dict:
+    a = np.abs(delta[np.isfinite(delta)])
+    if not len(a):
+        return {"median": None, "p95": None, "max": None}
+    return {"median": float(np.median(a)), "p95": float(np.percentile(a, 95)),
+            "max": float(a.max())}  # fmt: skip
+
+
+def check(name: str, args, workdir: Path) -> dict:
+    t0 = time.perf_counter()
+    spec, env = load(name)
+    short = name.removeprefix("h1hand-").removesuffix("-v0")
+    notes = []
+    kind = "fixture" if env.task.contacts == "manipulation" else "obstacle"
+    qpos, qvel, ctrl, task, episodes = draw_states(
+        env, args.states, args.every, args.episode_steps, args.seed
+    )
+    n = len(qpos)
+    task_leaves = jax.tree.leaves(task)
+    hidden_kind = HIDDEN.get(short, "")
+    if task_leaves and not hidden_kind:
+        notes.append("task state not transferred to HumanoidBench; stages not forced")
+    elif task_leaves:
+        notes.append(f"task state written to HumanoidBench as {hidden_kind}")
+    hidden = (np.concatenate([x.reshape(n, -1) for x in task_leaves], 1) if hidden_kind
+              else np.zeros((n, 0)))  # fmt: skip
+
+    reward, terminated, metrics = our_rewards(env, qpos, qvel, ctrl, task)
+    m = env.mj_model
+    states_file, hb_file = workdir / f"{short}_states.npz", workdir / f"{short}_hb.npz"
+    np.savez(
+        states_file,
+        task=np.array(name),
+        joint_names=np.array([m.joint(j).name for j in range(m.njnt)]),
+        jnt_qposadr=np.asarray(m.jnt_qposadr), jnt_dofadr=np.asarray(m.jnt_dofadr),
+        jnt_type=np.asarray(m.jnt_type),
+        actuator_names=np.array([m.actuator(a).name for a in range(m.nu)]),
+        qpos=qpos, qvel=qvel, ctrl=ctrl,
+        hidden_kind=np.array(hidden_kind), hidden=hidden,
+        rename_json=np.array(json.dumps(RENAME.get(short, {}))),
+    )  # fmt: skip
+    cmd = [args.python, str(HB_SIDE), "--task", name, "--states", str(states_file),
+           "--out", str(hb_file), "--seed", str(args.seed)]  # fmt: skip
+    if args.hb_checkout:
+        cmd += ["--hb-checkout", args.hb_checkout]
+    run = subprocess.run(cmd, capture_output=True, text=True)
+    if run.returncode != 0:
+        tail = (run.stderr or run.stdout).strip().splitlines()[-3:]
+        return {"task": name, "states": n, "error": " / ".join(tail), "notes": notes}
+    hb = np.load(hb_file, allow_pickle=False)
+
+    ours_fired, ours_pairs = classify(tables(m), *our_contacts(m, qpos, qvel, ctrl), n)
+    hb_fired, hb_pairs = classify(hb, hb["con_state"], hb["con_g1"], hb["con_g2"], n)
+    contacts = {}
+    for c in CLASSES:
+        o, h = ours_fired[c], hb_fired[c]
+        label = c.replace("static", kind)
+        if not (o.any() or h.any()):
+            contacts[label] = {"agreement": None, "ours_fires": 0, "hb_fires": 0,
+                               "bar": c in BAR_CLASSES}  # fmt: skip
+            continue
+        only_ours, only_hb = collections.Counter(), collections.Counter()
+        for i in np.flatnonzero(o != h):
+            (only_ours if o[i] else only_hb).update(ours_pairs[c][i] if o[i] else hb_pairs[c][i])
+        contacts[label] = {
+            "agreement": float((o == h).mean()),
+            "ours_fires": int(o.sum()),
+            "hb_fires": int(h.sum()),
+            "bar": c in BAR_CLASSES,
+            "ours_only_pairs": [f"{k}: {v}" for k, v in only_ours.most_common(5)],
+            "hb_only_pairs": [f"{k}: {v}" for k, v in only_hb.most_common(5)],
+        }
+
+    for label, v in contacts.items():
+        if v["agreement"] is None or v["agreement"] >= BAR_AGREEMENT:
+            continue
+        side = " (never on ours)" if not v["ours_fires"] else ""
+        side = " (never on HumanoidBench's)" if not v["hb_fires"] else side
+        bar = "below the bar" if v["bar"] else "no bar"
+        notes.append(f"{label} {100 * v['agreement']:.1f}%, {bar}{side}")
+    hb_reward = hb["reward"]
+    delta = reward - hb_reward
+    keys = [str(k) for k in hb["info_keys"]]
+    terms = {k: _stats(metrics[k] - hb["info"][:, keys.index(k)]) for k in metrics if k in keys}
+    for key, label in (("unmapped_ours", "our joints"), ("unmapped_hb", "HumanoidBench joints"),
+                       ("unmapped_actuators", "actuators")):  # fmt: skip
+        if len(hb[key]):
+            notes.append(f"unmapped {label}: {', '.join(map(str, hb[key]))}")
+    if len(hb["stubbed_assets"]):
+        notes.append(f"textures stubbed on HumanoidBench's side: {len(hb['stubbed_assets'])}")
+    if env.task.reads_contact_slots:
+        notes.append("our reward reads MJX contacts")
+    if getattr(env.task, "contact_rule", None) == "query":
+        notes.append("our reward's contact rule: exact robot-obstacle pair query on MJX")
+    worst = np.argsort(-np.abs(delta))[:3]
+    result = {
+        "task": name,
+        "states": n,
+        "episodes": episodes,
+        "hb_compat": "exact",
+        "contacts_ours": "MuJoCo C mj_forward on our model (MJX contacts: contact_parity)",
+        "contacts": contacts,
+        "reward": {
+            **_stats(delta),
+            "ours_mean": float(reward.mean()),
+            "hb_mean": float(hb_reward.mean()),
+            "worst": [
+                {"state": int(i), "ours": float(reward[i]), "hb": float(hb_reward[i])}
+                for i in worst
+            ],
+        },
+        "terms": terms,
+        "terminated_agreement": float((terminated == hb["terminated"]).mean()),
+        "passes": {
+            "contacts": all(
+                v["agreement"] is None or v["agreement"] >= BAR_AGREEMENT
+                for v in contacts.values()
+                if v["bar"]
+            ),
+            "reward": bool(
+                _stats(delta)["median"] <= BAR_MEDIAN and _stats(delta)["p95"] <= BAR_P95
+            ),
+        },
+        "notes": notes,
+        "hb_mujoco": str(hb["mujoco_version"]),
+        "ours_mujoco": mujoco.__version__,
+        "seconds": round(time.perf_counter() - t0, 1),
+    }
+    return result
+
+
+def _pct(v) -> str:
+    return "n/a" if v is None else f"{100 * v:.1f}%"
+
+
+def print_table(rows: list[dict]) -> None:
+    heads = ["robot-fixture/obstacle", "hand-object", "object-object", "robot-floor",
+             "robot-object", "object-fixture/obstacle", "object-floor"]  # fmt: skip
+    print("\n| task | states | " + " | ".join(heads)
+          + " | reward median abs d | p95 | termination | notes |")  # fmt: skip
+    print("|---|---:|" + "---:|" * (len(heads) + 3) + "---|")
+    for r in rows:
+        if "error" in r:
+            print(f"| {r['task']} | {r['states']} | error: {r['error']} |")
+            continue
+        c = r["contacts"]
+        cells = []
+        for cls in CLASSES:
+            for label in (cls.replace("static", "fixture"), cls.replace("static", "obstacle")):
+                if label in c:
+                    cells.append(_pct(c[label]["agreement"]))
+                    break
+        print(
+            f"| {r['task']} | {r['states']} | "
+            + " | ".join(cells)
+            + f" | {r['reward']['median']:.2g} | {r['reward']['p95']:.2g} | "
+            f"{_pct(r['terminated_agreement'])} | {'; '.join(r['notes'])} |"
+        )
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--python", required=True, help="REFENV/bin/python (HumanoidBench's venv)")
+    p.add_argument("--tasks", default="push,cube,walk")
+    p.add_argument("--states", type=int, default=500)
+    p.add_argument("--every", type=int, default=4, help="keep every N-th control step's state")
+    p.add_argument("--episode-steps", type=int, default=100)
+    p.add_argument("--hb-checkout", default=None, help="CHECKOUT, if REFENV lacks humanoid_bench")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, default=None)
+    p.add_argument("--keep", type=Path, default=None, help="folder for the exchanged .npz files")
+    args = p.parse_args(argv)
+    enable_compilation_cache()
+    names = [t if t.startswith("h1") else f"h1hand-{t}-v0" for t in args.tasks.split(",")]
+    results: dict[str, dict] = {}
+    if args.out and args.out.exists():
+        results = json.loads(args.out.read_text())
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        workdir = args.keep or Path(tmp)
+        workdir.mkdir(parents=True, exist_ok=True)
+        for name in names:
+            row = check(name, args, workdir)
+            rows.append(row)
+            results[name] = row
+            print(json.dumps(row), flush=True)
+            if args.out:
+                args.out.parent.mkdir(parents=True, exist_ok=True)
+                args.out.write_text(json.dumps(results, indent=1) + "\n")
+    print_table(rows)
+
+
+if __name__ == "__main__":
+    main()
