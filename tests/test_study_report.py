@@ -42,6 +42,16 @@ def test_summary_has_the_promised_keys_and_values(tmp_path):
     main(Args(results=str(tmp_path), out=str(out)))
     assert json.loads((out / "summary.json").read_text()) == s
     assert (out / "figure.png").stat().st_size > 10_000
+    # the official TD-MPC2's curve joins the figure; the summary (our arms) is unchanged
+    (tmp_path / "official").mkdir()
+    CsvLog(tmp_path / "official" / "eval.csv").extend([
+        {"seed": 0, "env_steps": step, "wall_s": 1.0, "planner_return": ret, "planner_length": "",
+         "policy_return": "", "policy_length": "", "r_max": "", "cpu_s": 1.0}
+        for step, ret in ((0, 9.0), (10_063, 40.0), (20_110, 80.0))])  # fmt: skip
+    with_official = tmp_path / "out2"
+    main(Args(results=str(tmp_path), out=str(with_official)))
+    assert json.loads((with_official / "summary.json").read_text()) == s
+    assert (with_official / "figure.png").read_bytes() != (out / "figure.png").read_bytes()
 
 
 def _curve(d, returns, wall_step_s, cpu_step_s, planner: bool):

@@ -6,7 +6,9 @@
 Reads `<results>/study/{tdmpc2,tdmpbc}/eval.csv` (+ done.json) and `<results>/random.json`;
 writes `<out>/summary.json` (the keys the study promises) and `<out>/figure.png`: both arms'
 mean +- std planner eval return over their seeds against env steps, over the published
-TD-MPC2 and BMPC curves of the task, with the TDMPBC arm's R_max and 10x the random return.
+TD-MPC2 and BMPC curves of the task, with the TDMPBC arm's R_max and 10x the random return,
+and the official TD-MPC2's curve at the study's config where `<results>/official/eval.csv`
+exists (`experiments.studies.official_tdmpc2`).
 With `--video`, also `<out>/best_seed.mp4`: one episode of the best seed's policy (planner,
 eval mode) from its arm's latest checkpoint, the seed with the highest last eval return.
 """
@@ -85,6 +87,13 @@ def figure(results: Path, summary: dict, out: Path) -> None:
             rmax = np.nanmean(r[:, seen], 0)
             ax.plot(steps[seen], rmax, color=color, ls=":", label="TDMPBC R_max (buffer), mean")
         last = max(last, int(steps[-1]))
+    official = results / "official" / "eval.csv"  # experiments.studies.official_tdmpc2
+    if official.exists():
+        c = arm_curves(official.parent).get(0)
+        if c is not None and len(c["steps"]):
+            ax.plot(c["steps"], c["return"], color="k", ls=":", marker="o", ms=3,
+                    label="TD-MPC2 official (HumanoidBench's PyTorch fork), our config, 1 seed")
+            last = max(last, int(c["steps"][-1]))
     for ref, style in zip(reference_curves(TASK), ("--", "-."), strict=False):
         c = ref.until(max(last, 100_000))
         ax.plot(c.steps, c.mean, color="gray", ls=style,
