@@ -62,6 +62,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from experiments.fidelity.hb_side import model_tables
 from sirl_jax.envs import load
 from sirl_jax.run.compile_cache import enable_compilation_cache
 
@@ -81,20 +82,8 @@ BAR_CLASSES = ("robot-static", "hand-object", "object-object")
 
 # -- roles and contact classes, one function for both models --------------------------------
 def tables(m: mujoco.MjModel) -> dict[str, np.ndarray]:
-    """The model tables `roles` reads (hb_side.py writes the same for HumanoidBench's model)."""
-    free = np.zeros(m.nbody, bool)
-    for j in range(m.njnt):
-        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-            free[m.jnt_bodyid[j]] = True
-    return {
-        "geom_name": np.array([m.geom(g).name for g in range(m.ngeom)]),
-        "geom_body": np.asarray(m.geom_bodyid, np.int64),
-        "geom_type": np.asarray(m.geom_type, np.int64),
-        "body_name": np.array([m.body(b).name for b in range(m.nbody)]),
-        "body_parent": np.asarray(m.body_parentid, np.int64),
-        "body_weldid": np.asarray(m.body_weldid, np.int64),
-        "body_free": np.asarray(free),
-    }
+    """The model tables `roles` reads, as hb_side.py writes them for HumanoidBench's model."""
+    return model_tables(mujoco, m)
 
 
 def roles(t: dict[str, np.ndarray]) -> tuple[list[str], list[str]]:

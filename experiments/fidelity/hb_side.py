@@ -87,7 +87,9 @@ def _patch_missing_textures(mujoco) -> None:
     mujoco.MjModel.from_xml_path = from_xml_path
 
 
-def _tables(mujoco, m) -> dict[str, np.ndarray]:
+def model_tables(mujoco, m) -> dict[str, np.ndarray]:
+    """The model tables hb_parity's `roles` reads (hb_parity imports this: one definition for
+    both models; it takes the `mujoco` module so that this file imports no MuJoCo at load)."""
     free = np.zeros(m.nbody, bool)
     for j in range(m.njnt):
         if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
@@ -213,7 +215,7 @@ def main(argv=None) -> None:
         unmapped_actuators=np.array(unmapped_act, dtype=str),
         stubbed_assets=np.array(STUBBED, dtype=str),
         mujoco_version=np.array(mujoco.__version__),
-        **_tables(mujoco, m),
+        **model_tables(mujoco, m),
     )
 
 
