@@ -11,7 +11,9 @@ For each task, `--states` states are drawn on our side and scored by both implem
   every `--every`th control step's (qpos, qvel, ctrl) is kept, with the episode's task state.
 - Our reward: the task's `evaluate` (the code training runs), vmapped in one jit per task over
   `mjx.forward` of (qpos, qvel, ctrl), with the episode's reset task state. A task whose task
-  state holds stages or counters gets the reset one ("stages not forced" in the notes).
+  state is a stage (`FORCED`: maze) is scored once per stage, the stage forced on every state
+  on both sides; other tasks with stages or counters get the reset task state ("stages not
+  forced" in the notes).
 - HumanoidBench: `hb_side.py` under REFENV's Python (`--python`): HumanoidBench's own env
   (`gymnasium.make`), qpos/qvel/ctrl written joint by joint and actuator by actuator by NAME
   (`RENAME` holds per-task name maps where names differ; joints without a partner are
@@ -70,8 +72,12 @@ HB_SIDE = Path(__file__).with_name("hb_side.py")
 RENAME: dict[str, dict[str, str]] = {}
 """Per-task joint renames, our name -> HumanoidBench's. Empty: the H1's joints and the objects'
 free joints of the tasks checked so far carry the same names in both models."""
-HIDDEN: dict[str, str] = {"push": "attr:goal", "cube": "body_quat:target_cube"}
+HIDDEN: dict[str, str] = {"push": "attr:goal", "cube": "body_quat:target_cube",
+                          "reach": "attr:goal", "maze": "maze_stage"}  # fmt: skip
 """Where HumanoidBench keeps the task state that our task state carries (see hb_side.py)."""
+FORCED: dict[str, tuple[int, ...]] = {"maze": (0, 1, 2, 3, 4)}
+"""Tasks whose task state is a stage: each stage is forced on every state in turn, both sides
+(ours: the task state; HumanoidBench's: through `HIDDEN`), and scored separately."""
 ROBOT_ROOT, HANDS, FLOOR = "pelvis", ("left_hand", "right_hand"), "floor"
 FALL_Z = 0.5
 BAR_AGREEMENT, BAR_MEDIAN, BAR_P95 = 0.99, 0.005, 0.02
@@ -259,29 +265,47 @@ def check(name: str, args, workdir: Path) -> dict:
     hidden = (np.concatenate([x.reshape(n, -1) for x in task_leaves], 1) if hidden_kind
               else np.zeros((n, 0)))  # fmt: skip
 
-    reward, terminated, metrics = our_rewards(env, qpos, qvel, ctrl, task)
     m = env.mj_model
-    states_file, hb_file = workdir / f"{short}_states.npz", workdir / f"{short}_hb.npz"
-    np.savez(
-        states_file,
-        task=np.array(name),
-        joint_names=np.array([m.joint(j).name for j in range(m.njnt)]),
-        jnt_qposadr=np.asarray(m.jnt_qposadr), jnt_dofadr=np.asarray(m.jnt_dofadr),
-        jnt_type=np.asarray(m.jnt_type),
-        actuator_names=np.array([m.actuator(a).name for a in range(m.nu)]),
-        qpos=qpos, qvel=qvel, ctrl=ctrl,
-        hidden_kind=np.array(hidden_kind), hidden=hidden,
-        rename_json=np.array(json.dumps(RENAME.get(short, {}))),
-    )  # fmt: skip
-    cmd = [args.python, str(HB_SIDE), "--task", name, "--states", str(states_file),
-           "--out", str(hb_file), "--seed", str(args.seed)]  # fmt: skip
-    if args.hb_checkout:
-        cmd += ["--hb-checkout", args.hb_checkout]
-    run = subprocess.run(cmd, capture_output=True, text=True)
-    if run.returncode != 0:
-        tail = (run.stderr or run.stdout).strip().splitlines()[-3:]
-        return {"task": name, "states": n, "error": " / ".join(tail), "notes": notes}
-    hb = np.load(hb_file, allow_pickle=False)
+
+    def hb_side(tag: str, hidden: np.ndarray):
+        """HumanoidBench's answers on the states with this hidden task state, or an error."""
+        states_file = workdir / f"{short}{tag}_states.npz"
+        hb_file = workdir / f"{short}{tag}_hb.npz"
+        np.savez(
+            states_file,
+            task=np.array(name),
+            joint_names=np.array([m.joint(j).name for j in range(m.njnt)]),
+            jnt_qposadr=np.asarray(m.jnt_qposadr), jnt_dofadr=np.asarray(m.jnt_dofadr),
+            jnt_type=np.asarray(m.jnt_type),
+            actuator_names=np.array([m.actuator(a).name for a in range(m.nu)]),
+            qpos=qpos, qvel=qvel, ctrl=ctrl,
+            hidden_kind=np.array(hidden_kind), hidden=hidden,
+            rename_json=np.array(json.dumps(RENAME.get(short, {}))),
+        )  # fmt: skip
+        cmd = [args.python, str(HB_SIDE), "--task", name, "--states", str(states_file),
+               "--out", str(hb_file), "--seed", str(args.seed)]  # fmt: skip
+        if args.hb_checkout:
+            cmd += ["--hb-checkout", args.hb_checkout]
+        run = subprocess.run(cmd, capture_output=True, text=True)
+        if run.returncode != 0:
+            return " / ".join((run.stderr or run.stdout).strip().splitlines()[-3:])
+        return np.load(hb_file, allow_pickle=False)
+
+    reward, terminated, metrics = our_rewards(env, qpos, qvel, ctrl, task)
+    hb = hb_side("", hidden)
+    if isinstance(hb, str):
+        return {"task": name, "states": n, "error": hb, "notes": notes}
+    stages = {}
+    for stage in FORCED.get(short, ()):
+        forced = jax.tree.map(lambda x, s=stage: np.full_like(x, s), task)
+        ours = our_rewards(env, qpos, qvel, ctrl, forced)[0]
+        hb_s = hb_side(f"_stage{stage}", np.full((n, 1), stage, np.float64))
+        if isinstance(hb_s, str):
+            return {"task": name, "states": n, "error": f"stage {stage}: {hb_s}", "notes": notes}
+        stages[str(stage)] = {**_stats(ours - hb_s["reward"]), "ours_mean": float(ours.mean()),
+                              "hb_mean": float(hb_s["reward"].mean())}  # fmt: skip
+    if stages:
+        notes.append(f"stages forced in turn: {', '.join(stages)}")
 
     ours_fired, ours_pairs = classify(tables(m), *our_contacts(m, qpos, qvel, ctrl), n)
     hb_fired, hb_pairs = classify(hb, hb["con_state"], hb["con_g1"], hb["con_g2"], n)
@@ -344,6 +368,7 @@ def check(name: str, args, workdir: Path) -> dict:
             ],
         },
         "terms": terms,
+        "stages": stages,
         "terminated_agreement": float((terminated == hb["terminated"]).mean()),
         "passes": {
             "contacts": all(
@@ -351,8 +376,9 @@ def check(name: str, args, workdir: Path) -> dict:
                 for v in contacts.values()
                 if v["bar"]
             ),
-            "reward": bool(
-                _stats(delta)["median"] <= BAR_MEDIAN and _stats(delta)["p95"] <= BAR_P95
+            "reward": all(
+                r["median"] <= BAR_MEDIAN and r["p95"] <= BAR_P95
+                for r in (_stats(delta), *stages.values())
             ),
         },
         "notes": notes,

@@ -13,8 +13,11 @@ it once, and for each state of `--states`:
 1. writes qpos and qvel into its `MjData` joint by joint, matching our joint names to its own
    (after the optional rename map), and ctrl actuator by actuator, likewise by name;
 2. writes the task's hidden state where the harness names one (`hidden_kind`):
-   `attr:NAME` sets `task.NAME` (push's goal), `body_quat:BODY` sets the model's body_quat
-   (cube's target orientation, which HumanoidBench writes there);
+   `attr:NAME` sets `task.NAME` (push's goal, reach's goal), `body_quat:BODY` sets the
+   model's body_quat (cube's target orientation, which HumanoidBench writes there), and
+   `maze_stage` sets maze's `maze_stage` with the `move_direction` that HumanoidBench's own
+   `update_move_direction` leaves at that stage (`_maze_stages`: the pelvis is put on each
+   checkpoint in turn from a reset, so the directions are HumanoidBench's, not ours);
 3. runs `mj_forward` and calls the task's `get_reward()` -> (reward, info) and
    `get_terminated()` -> (terminated, info);
 4. records every contact in `data.contact[:ncon]` as (state, geom1, geom2, dist).
@@ -105,6 +108,24 @@ def model_tables(mujoco, m) -> dict[str, np.ndarray]:
     }
 
 
+def _maze_stages(mujoco, m, d, task) -> list[tuple[int, np.ndarray]]:
+    """[(maze_stage, move_direction)] for every stage, as HumanoidBench's maze reaches them:
+    from `reset_model`, the pelvis (the free joint's x, y) is put on the current checkpoint and
+    `update_move_direction` runs, until the stage stops advancing. MjData is left as found."""
+    saved = d.qpos.copy()
+    task.reset_model()
+    out = [(int(task.maze_stage), np.array(task.move_direction, np.float64))]
+    while True:
+        d.qpos[:2] = task.checkpoints[task.maze_stage][:2]
+        mujoco.mj_forward(m, d)
+        task.update_move_direction()
+        if int(task.maze_stage) == out[-1][0]:
+            break
+        out.append((int(task.maze_stage), np.array(task.move_direction, np.float64)))
+    d.qpos[:] = saved
+    return out
+
+
 def _number(value) -> float:
     try:
         return float(np.asarray(value, np.float64).reshape(()))
@@ -169,6 +190,7 @@ def main(argv=None) -> None:
     hidden_kind = str(s["hidden_kind"])
     hidden = s["hidden"]
     qpos_base, qvel_base = d.qpos.copy(), d.qvel.copy()
+    stages = _maze_stages(mujoco, m, d, task) if hidden_kind == "maze_stage" else []
 
     rewards, terminated, infos = np.zeros(n), np.zeros(n, bool), []
     con_state, con_g1, con_g2, con_dist = [], [], [], []
@@ -184,6 +206,9 @@ def main(argv=None) -> None:
             setattr(task, hidden_kind[5:], np.array(hidden[i], np.float64))
         elif hidden_kind.startswith("body_quat:"):
             m.body_quat[m.body(hidden_kind[10:]).id] = hidden[i]
+        elif hidden_kind == "maze_stage":
+            task.maze_stage, direction = stages[int(hidden[i, 0])]
+            task.move_direction = direction.copy()
         elif hidden_kind:
             raise SystemExit(f"unknown hidden_kind {hidden_kind!r}")
         mujoco.mj_forward(m, d)
@@ -215,6 +240,7 @@ def main(argv=None) -> None:
         unmapped_actuators=np.array(unmapped_act, dtype=str),
         stubbed_assets=np.array(STUBBED, dtype=str),
         mujoco_version=np.array(mujoco.__version__),
+        stage_table=np.array([[k, *v] for k, v in stages], np.float64).reshape(len(stages), 4),
         **model_tables(mujoco, m),
     )
 
