@@ -11,15 +11,17 @@ For each task, `--states` states are drawn on our side and scored by both implem
   every `--every`th control step's (qpos, qvel, ctrl) is kept, with the episode's task state.
 - Our reward: the task's `evaluate` (the code training runs), vmapped in one jit per task over
   `mjx.forward` of (qpos, qvel, ctrl), with the episode's reset task state. A task whose task
-  state is a stage (`FORCED`: maze) is scored once per stage, the stage forced on every state
-  on both sides; other tasks with stages or counters get the reset task state ("stages not
-  forced" in the notes).
+  state has a stage (`Transfer.stages`: maze, basketball, bookshelf) is scored once per
+  stage, the stage forced on every state on both sides; other tasks get the reset task state
+  ("task state not transferred" in the notes where HumanoidBench's side does not get it).
 - HumanoidBench: `hb_side.py` under REFENV's Python (`--python`): HumanoidBench's own env
   (`gymnasium.make`), qpos/qvel/ctrl written joint by joint and actuator by actuator by NAME
   (`RENAME` holds per-task name maps where names differ; joints without a partner are
-  reported), the hidden task state written where HumanoidBench keeps it (`HIDDEN`: push's goal,
-  cube's target orientation in the model's body_quat), then `mj_forward` and the task's
-  `get_reward()` and `get_terminated()`.
+  reported), the hidden task state written where HumanoidBench keeps it (`HIDDEN`: push's and
+  reach's goal, cube's target orientation in the model's body_quat, package's destination,
+  window's start head position, spoon's counter, maze's, basketball's and bookshelf's stage,
+  bookshelf_hard's drawn objects and goals), then
+  `mj_forward` and the task's `get_reward()` and `get_terminated()`.
 - Contacts: on our side MuJoCo C's `mj_forward` contacts on our own model (not MJX's: MJX's
   own contact differences are `contact_parity`'s subject), on HumanoidBench's side its
   `data.contact`; every contact in `d.contact[:ncon]` counts, as HumanoidBench's rules read them.
@@ -52,11 +54,14 @@ from __future__ import annotations
 
 import argparse
 import collections
+import dataclasses
 import json
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -64,7 +69,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from experiments.fidelity.hb_side import model_tables
+from experiments.fidelity.hb_side import joint_key, model_tables
 from sirl_jax.envs import load
 from sirl_jax.run.compile_cache import enable_compilation_cache
 
@@ -72,12 +77,58 @@ HB_SIDE = Path(__file__).with_name("hb_side.py")
 RENAME: dict[str, dict[str, str]] = {}
 """Per-task joint renames, our name -> HumanoidBench's. Empty: the H1's joints and the objects'
 free joints of the tasks checked so far carry the same names in both models."""
-HIDDEN: dict[str, str] = {"push": "attr:goal", "cube": "body_quat:target_cube",
-                          "reach": "attr:goal", "maze": "maze_stage"}  # fmt: skip
-"""Where HumanoidBench keeps the task state that our task state carries (see hb_side.py)."""
-FORCED: dict[str, tuple[int, ...]] = {"maze": (0, 1, 2, 3, 4)}
-"""Tasks whose task state is a stage: each stage is forced on every state in turn, both sides
-(ours: the task state; HumanoidBench's: through `HIDDEN`), and scored separately."""
+
+
+def _leaves(task) -> np.ndarray:
+    """The whole batched task state as [n, k]."""
+    leaves = jax.tree.leaves(task)
+    return np.concatenate([np.asarray(x, np.float64).reshape(len(x), -1) for x in leaves], 1)
+
+
+def _same_stage(task, stage: int):
+    """The batched task state with every leaf set to `stage` (maze: the stage is all of it)."""
+    return jax.tree.map(lambda x: np.full_like(x, stage), task)
+
+
+def _with(key: str):
+    """(task state dict, stage) -> the same dict with `key` set to the stage on every state."""
+    return lambda task, stage: {**task, key: np.full_like(task[key], stage)}
+
+
+@dataclasses.dataclass(frozen=True)
+class Transfer:
+    """How a task's state reaches HumanoidBench (hb_side.py's `hidden_kind`), and its stages."""
+
+    kind: str
+    pick: Callable[[Any], np.ndarray] = _leaves
+    """Our batched task state -> the [n, k] values hb_side writes."""
+    stages: tuple[int, ...] = ()
+    """Stages forced in turn on every state, both sides, each scored separately."""
+    force: Callable[[Any, int], Any] = _same_stage
+    """(our batched task state, stage) -> the task state with that stage."""
+
+
+HIDDEN: dict[str, Transfer] = {
+    "push": Transfer("attr:goal"),
+    "cube": Transfer("body_quat:target_cube"),
+    "reach": Transfer("attr:goal"),
+    "maze": Transfer("maze_stage", stages=(0, 1, 2, 3, 4)),
+    # HumanoidBench keeps the destination as the body's position (z 0; the site sits 0.35 up)
+    "package": Transfer("body_pos:package_destination",
+                        pick=lambda t: np.concatenate([t[:, :2], np.zeros((len(t), 1))], 1)),
+    "window": Transfer("attr:head_pos0"),
+    "spoon": Transfer("attr:step_counter", pick=lambda t: np.asarray(t["phase"])[:, None]),
+    # bookshelf: the stage (`task_index`); hard also its drawn objects and goals, simple keeps
+    # HumanoidBench's own fixed order, so that ours is checked against it
+    "bookshelf_simple": Transfer("bookshelf", pick=lambda t: np.asarray(t["index"])[:, None],
+                                 stages=(0, 1, 2, 3, 4), force=_with("index")),
+    "bookshelf_hard": Transfer("bookshelf", pick=lambda t: np.concatenate(
+        [np.asarray(t["order"], np.float64), np.asarray(t["goals"]).reshape(len(t["goals"]), -1),
+         np.asarray(t["index"])[:, None]], 1), stages=(0, 1, 2, 3, 4), force=_with("index")),
+    "basketball": Transfer("basketball_stage", pick=lambda t: np.asarray(t["stage"])[:, None],
+                           stages=(0, 1), force=_with("stage")),
+}  # fmt: skip
+"""Where HumanoidBench keeps the task state that ours carries (see hb_side.py)."""
 ROBOT_ROOT, HANDS, FLOOR = "pelvis", ("left_hand", "right_hand"), "floor"
 FALL_Z = 0.5
 BAR_AGREEMENT, BAR_MEDIAN, BAR_P95 = 0.99, 0.005, 0.02
@@ -257,13 +308,13 @@ def check(name: str, args, workdir: Path) -> dict:
     )
     n = len(qpos)
     task_leaves = jax.tree.leaves(task)
-    hidden_kind = HIDDEN.get(short, "")
-    if task_leaves and not hidden_kind:
+    transfer = HIDDEN.get(short)
+    hidden_kind = transfer.kind if transfer else ""
+    if task_leaves and not transfer:
         notes.append("task state not transferred to HumanoidBench; stages not forced")
     elif task_leaves:
         notes.append(f"task state written to HumanoidBench as {hidden_kind}")
-    hidden = (np.concatenate([x.reshape(n, -1) for x in task_leaves], 1) if hidden_kind
-              else np.zeros((n, 0)))  # fmt: skip
+    hidden = transfer.pick(task) if transfer else np.zeros((n, 0))
 
     m = env.mj_model
 
@@ -274,7 +325,7 @@ def check(name: str, args, workdir: Path) -> dict:
         np.savez(
             states_file,
             task=np.array(name),
-            joint_names=np.array([m.joint(j).name for j in range(m.njnt)]),
+            joint_names=np.array([joint_key(m, j) for j in range(m.njnt)]),
             jnt_qposadr=np.asarray(m.jnt_qposadr), jnt_dofadr=np.asarray(m.jnt_dofadr),
             jnt_type=np.asarray(m.jnt_type),
             actuator_names=np.array([m.actuator(a).name for a in range(m.nu)]),
@@ -296,10 +347,10 @@ def check(name: str, args, workdir: Path) -> dict:
     if isinstance(hb, str):
         return {"task": name, "states": n, "error": hb, "notes": notes}
     stages = {}
-    for stage in FORCED.get(short, ()):
-        forced = jax.tree.map(lambda x, s=stage: np.full_like(x, s), task)
+    for stage in transfer.stages if transfer else ():
+        forced = transfer.force(task, stage)
         ours = our_rewards(env, qpos, qvel, ctrl, forced)[0]
-        hb_s = hb_side(f"_stage{stage}", np.full((n, 1), stage, np.float64))
+        hb_s = hb_side(f"_stage{stage}", transfer.pick(forced))
         if isinstance(hb_s, str):
             return {"task": name, "states": n, "error": f"stage {stage}: {hb_s}", "notes": notes}
         stages[str(stage)] = {**_stats(ours - hb_s["reward"]), "ours_mean": float(ours.mean()),

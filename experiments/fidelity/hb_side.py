@@ -11,13 +11,18 @@ For the task it makes `gymnasium.make(task, render_mode=None)` (HumanoidBench's 
 it once, and for each state of `--states`:
 
 1. writes qpos and qvel into its `MjData` joint by joint, matching our joint names to its own
-   (after the optional rename map), and ctrl actuator by actuator, likewise by name;
+   (after the optional rename map; an unnamed joint by its body and its place there,
+   `joint_key`), and ctrl actuator by actuator, likewise by name;
 2. writes the task's hidden state where the harness names one (`hidden_kind`):
-   `attr:NAME` sets `task.NAME` (push's goal, reach's goal), `body_quat:BODY` sets the
-   model's body_quat (cube's target orientation, which HumanoidBench writes there), and
-   `maze_stage` sets maze's `maze_stage` with the `move_direction` that HumanoidBench's own
-   `update_move_direction` leaves at that stage (`_maze_stages`: the pelvis is put on each
-   checkpoint in turn from a reset, so the directions are HumanoidBench's, not ours);
+   `attr:NAME` sets `task.NAME` (push's and reach's goal, window's `head_pos0`, spoon's
+   `step_counter`; a single column is written as a scalar), `body_quat:BODY` the model's
+   body_quat (cube's target orientation, which HumanoidBench writes there), `body_pos:BODY`
+   the body's position (package's destination), `basketball_stage` basketball's `stage`
+   ("catch" for 0, "throw" for 1), `bookshelf` bookshelf's `task_index` (and for a 25-column
+   state also `bookshelf_objects` and `placement_goals`), and `maze_stage` maze's
+   `maze_stage`, with the `move_direction` that HumanoidBench's own `update_move_direction`
+   leaves at that stage (`_maze_stages`: the pelvis is put on each checkpoint in turn from a
+   reset, so the directions are HumanoidBench's, not ours);
 3. runs `mj_forward` and calls the task's `get_reward()` -> (reward, info) and
    `get_terminated()` -> (terminated, info);
 4. records every contact in `data.contact[:ncon]` as (state, geom1, geom2, dist).
@@ -108,6 +113,16 @@ def model_tables(mujoco, m) -> dict[str, np.ndarray]:
     }
 
 
+def joint_key(m, j: int) -> str:
+    """A joint's name, or for an unnamed joint "@BODY:K" (the K-th joint of its body), so that
+    unnamed joints (window's wiper ball joint, on both sides) still find their partner."""
+    name = m.joint(j).name
+    if name:
+        return name
+    body = int(m.jnt_bodyid[j])
+    return f"@{m.body(body).name}:{j - int(m.body_jntadr[body])}"
+
+
 def _maze_stages(mujoco, m, d, task) -> list[tuple[int, np.ndarray]]:
     """[(maze_stage, move_direction)] for every stage, as HumanoidBench's maze reaches them:
     from `reset_model`, the pelvis (the free joint's x, y) is put on the current checkpoint and
@@ -159,14 +174,15 @@ def main(argv=None) -> None:
     rename = json.loads(str(s["rename_json"]))
     n = s["qpos"].shape[0]
 
-    # joints by name
+    # joints by name (unnamed ones by body and position: `joint_key`)
+    keys = {joint_key(m, j): j for j in range(m.njnt)}
     qpos_src, qpos_dst, qvel_src, qvel_dst = [], [], [], []
     unmapped_ours = []
     for name, qa, da, jt in zip(
         s["joint_names"], s["jnt_qposadr"], s["jnt_dofadr"], s["jnt_type"], strict=True
     ):
         target = rename.get(str(name), str(name))
-        j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, target)
+        j = keys.get(target, -1)
         if j < 0 or int(m.jnt_type[j]) != int(jt):
             unmapped_ours.append(str(name))
             continue
@@ -176,7 +192,7 @@ def main(argv=None) -> None:
         qvel_src += range(da, da + nv)
         qvel_dst += range(m.jnt_dofadr[j], m.jnt_dofadr[j] + nv)
     mapped = {rename.get(str(x), str(x)) for x in s["joint_names"]} - set(unmapped_ours)
-    unmapped_hb = [m.joint(j).name for j in range(m.njnt) if m.joint(j).name not in mapped]
+    unmapped_hb = [k for k in keys if k not in mapped]
     # actuators by name
     act_src, act_dst, unmapped_act = [], [], []
     for i, name in enumerate(s["actuator_names"]):
@@ -203,9 +219,20 @@ def main(argv=None) -> None:
         d.ctrl[:] = 0
         d.ctrl[act_dst] = s["ctrl"][i, act_src]
         if hidden_kind.startswith("attr:"):
-            setattr(task, hidden_kind[5:], np.array(hidden[i], np.float64))
+            value = hidden[i] if hidden.shape[1] > 1 else hidden[i, 0]  # a scalar: spoon's counter
+            setattr(task, hidden_kind[5:], np.array(value, np.float64))
         elif hidden_kind.startswith("body_quat:"):
             m.body_quat[m.body(hidden_kind[10:]).id] = hidden[i]
+        elif hidden_kind.startswith("body_pos:"):
+            m.body_pos[m.body(hidden_kind[9:]).id] = hidden[i]
+        elif hidden_kind == "bookshelf":  # [index] or [6 objects, 6 x 3 goals, index]
+            h = hidden[i]
+            if len(h) > 1:  # our objects 0..11 are HumanoidBench's last 12 bodies, -24..-13
+                task.bookshelf_objects = h[:6].astype(np.int64) - 24
+                task.placement_goals = h[6:24].reshape(6, 3)
+            task.task_index = int(h[-1])
+        elif hidden_kind == "basketball_stage":  # our CATCH 0, THROW 1
+            task.stage = ("catch", "throw")[int(hidden[i, 0])]
         elif hidden_kind == "maze_stage":
             task.maze_stage, direction = stages[int(hidden[i, 0])]
             task.move_direction = direction.copy()
