@@ -77,3 +77,17 @@ def test_gpu_presets_are_the_two_settings_of_the_table():
     assert (gpu.train.num_envs, gpu.train.utd) == paper[1:]
     assert (fast.train.num_envs, fast.train.utd) == throughput[1:]
     assert fast.agent == gpu.agent
+
+
+@pytest.mark.timeout(300)
+def test_rows_runs_only_the_chosen_groups_and_agent_brings_matmul(tmp_path):
+    out = tmp_path / "rows.json"
+    device.main(["--quick", "--rows", "agent", "--json", str(out)])
+    rows = {r["row"]: r for r in json.loads(out.read_text())["rows"]}
+    assert rows["matmul float32"]["value"] > 0  # run because the agent rows divide by it
+    agent = [name for name in rows if name.startswith("agent ")]
+    assert len(agent) == 3
+    for name in agent:
+        assert rows[name]["value"] > 0 and "nanx" not in rows[name]["note"], rows[name]
+    others = [r for name, r in rows.items() if not name.startswith(("agent ", "matmul"))]
+    assert others and all(r["value"] == "n/a: not reached" for r in others)

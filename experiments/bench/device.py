@@ -3,6 +3,7 @@
     python experiments/bench/device.py                  # on a GPU: about 8 min, compiles included
     python experiments/bench/device.py --quick          # CPU check (a test runs it): tiny sizes
     python experiments/bench/device.py --json out.json  # the table as JSON too
+    python experiments/bench/device.py --rows agent env  # a second call: only these row groups
 
 Runs without `make` from wheels on PYTHONPATH (the repository root included). Rows:
   env      h1hand-walk `VecEnv` control steps/s summed over E envs, a `lax.scan` of K steps,
@@ -59,6 +60,7 @@ from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.train import make_train
 
 RUN_STEPS, SEEDS = 2_000_000, 3
+ROW_GROUPS = ("matmul", "paper", "agent", "env", "fasttd3", "throughput", "warp")
 QUICK_XLA_FLAGS = "--xla_backend_optimization_level=0 --xla_llvm_disable_expensive_passes=true"
 
 
@@ -81,7 +83,8 @@ class Sizes:
     repeats: int = 3
     caveat: str = ""
     fasttd3: AgentConfig = dataclasses.field(
-        default_factory=lambda: get_preset("fasttd3-gpu").agent)
+        default_factory=lambda: get_preset("fasttd3-gpu").agent
+    )
     fasttd3_envs: int = 1024
 
     @classmethod
@@ -89,8 +92,11 @@ class Sizes:
         return cls(
             env_task="pendulum",
             # reach and hurdle by the full id: the projection's env swap runs (a no-op here)
-            tasks=(("walk", "pendulum"), ("reach", "pendulum-swingup-v0"),
-                   ("hurdle", "pendulum-swingup-v0")),  # fmt: skip
+            tasks=(
+                ("walk", "pendulum"),
+                ("reach", "pendulum-swingup-v0"),
+                ("hurdle", "pendulum-swingup-v0"),
+            ),  # fmt: skip
             env_envs=(1, 3),
             env_chunk=5,
             agent=AgentConfig.tiny(),
@@ -376,6 +382,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--json", default=None, help="also write the table as JSON to this file")
     ap.add_argument("--budget", type=float, default=None, help="seconds after which rows are "
                     "skipped (default 360; quick 600)")  # fmt: skip
+    ap.add_argument("--rows", nargs="+", choices=ROW_GROUPS, default=None, metavar="GROUP",
+                    help=f"only these groups of rows, in priority order (default all: "
+                    f"{' '.join(ROW_GROUPS)}); the others read 'n/a: not reached'")  # fmt: skip
     args = ap.parse_args(argv)
     if args.quick:  # read when XLA's backend starts, i.e. at the first computation below
         os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {QUICK_XLA_FLAGS}".strip()
@@ -389,18 +398,19 @@ def main(argv: list[str] | None = None) -> None:
     bench = Bench(sizes, table, args.budget or (600.0 if args.quick else 360.0))
     paper, throughput = sizes.settings
     _, probe = load(sizes.env_task)
-    # priority order: what the paper's projection needs first, Warp (absent on the GPU) last
-    bench.matmul()
-    bench.train(paper)
-    bench.project(paper)
-    bench.agent(probe.observation_size, probe.action_size)
-    for e in sizes.env_envs:
-        bench.env("jax", e, warp)
-    bench.fasttd3()
-    bench.train(throughput)
-    bench.project(throughput)
-    for e in sizes.env_envs:
-        bench.env("warp", e, warp)
+    groups = {  # priority order: what the paper's projection needs first, Warp last
+        "matmul": bench.matmul,
+        "paper": lambda: (bench.train(paper), bench.project(paper)),
+        "agent": lambda: bench.agent(probe.observation_size, probe.action_size),
+        "env": lambda: [bench.env("jax", e, warp) for e in sizes.env_envs],
+        "fasttd3": bench.fasttd3,
+        "throughput": lambda: (bench.train(throughput), bench.project(throughput)),
+        "warp": lambda: [bench.env("warp", e, warp) for e in sizes.env_envs],
+    }
+    chosen = set(args.rows or ROW_GROUPS) | ({"matmul"} if "agent" in (args.rows or ()) else set())
+    for group in ROW_GROUPS:  # the agent rows' "x its matmul time" needs the matmul row
+        if group in chosen:
+            groups[group]()
     table.write()
     table.print()
     print(f"\n{header}; {time.perf_counter() - bench.start:.0f} s")
