@@ -38,8 +38,11 @@ EPISODE = 100  # a short time limit (2 s), long enough for a limp robot to colla
 EXTRA = 20
 NEVER_TERMINATE = ("reach", "crawl")
 # Scenery can hold a limp robot up: it falls back onto the chair and stays seated above the
-# 0.5 m termination height, or leans against the maze block behind it with the root above 0.2 m.
-CAUGHT_BY_SCENE = ("sit_simple", "sit_hard", "maze")
+# 0.5 m termination height, or leans against the maze block (or hurdle's barrier, x = -0.475)
+# behind it with the root above 0.2 m (measured at seed 0: 2 of 4 hurdle envs rest at 0.207 and
+# 0.209 with the root 0.26-0.31 m behind the start).
+CAUGHT_BY_SCENE = ("sit_simple", "sit_hard", "maze", "hurdle")
+LEAN_ON_BARRIER = ("maze", "hurdle")
 SEAT_REACH = 0.35  # root xy to chair xy when seated: seat half-diagonal 0.30 + 0.05
 ROOT_Z_TERMINATION = {
     "stand": 0.2, "walk": 0.2, "run": 0.2, "hurdle": 0.2, "maze": 0.2,
@@ -219,9 +222,9 @@ def _check_held_by_scene(env, name, limp):
     last = limp["final_obs"][EPISODE - 1]  # [E, O] the truncation step, before the reset
     root = last[:, :3]
     assert (root[held, 2] < 0.8).all()  # it did collapse (keyframe root z 0.98)
-    if name == "maze":  # leaning on a block: the block penalty is active
-        # Arms and palms collide with the blocks (HumanoidBench's contact set), so the block
-        # behind the start may hold every limp robot above the 0.2 m termination height.
+    if name in LEAN_ON_BARRIER:  # leaning on the block or barrier: the penalty is active
+        # Arms and palms collide with the obstacles (HumanoidBench's contact set), so the block
+        # or barrier behind the start may hold a limp robot above the 0.2 m termination height.
         # Sliding slowly down the block, the contact flickers (a step with dist >= 0 now and
         # then), so ask for the penalty on most of the last 20 steps rather than on the last.
         wall = limp["metrics"]["wall_collision_discount"][EPISODE - 20 : EPISODE, held]
