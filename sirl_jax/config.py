@@ -20,7 +20,7 @@ from typing import Any
 
 from sirl_jax.agent.config import AgentConfig, SirlConfig
 from sirl_jax.agent.config import check as _check
-from sirl_jax.hb_compat import EXACT, check_hb_compat
+from sirl_jax.hb_compat import EXACT, HB, check_contact_set, check_hb_compat
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,6 +37,10 @@ class TrainConfig:
     hb_compat: str = EXACT
     """HumanoidBench's quirks: "exact" reproduces them, so returns compare with the paper and
     HumanoidBench's curves; "fixed" corrects them (docs/tasks.md, "HumanoidBench's quirks")."""
+    contact_set: str = HB
+    """What the manipulation scenes' colliders touch: "hb" (HumanoidBench's set: the robot
+    against tables and shelves, objects against each other) or "reduced" (the cheaper cut set
+    earlier runs used). docs/tasks.md, "Contact sets"."""
     seed: int = 0
     """PRNG seed of the run."""
     steps: int = 2_000_000
@@ -80,6 +84,7 @@ class TrainConfig:
         _check(bool(self.task), "train.task", self.task, "a non-empty task name")
         _check(self.impl in ("jax", "warp"), "train.impl", self.impl, "'jax' or 'warp'")
         check_hb_compat(self.hb_compat, "train.hb_compat")
+        check_contact_set(self.contact_set, "train.contact_set")
         _check(self.seed >= 0, "train.seed", self.seed, "an int >= 0")
         _check(self.steps >= 1, "train.steps", self.steps, "an int >= 1")
         _check(self.num_envs >= 1, "train.num_envs", self.num_envs, "an int >= 1")

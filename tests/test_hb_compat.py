@@ -373,7 +373,8 @@ def test_basketball_ball_on_a_leg_ends_the_catch_stage_only_in_exact_mode():
     capsule, a contact MuJoCo C does not report here (the ball does not touch the legs);
     HumanoidBench's rule (any ball contact) ends the catch stage, fixed mode's does not. Far
     from the robot neither does; an active ball contact (the floor) ends it in both modes."""
-    env = _env("basketball")
+    hb = _env("basketball")  # HumanoidBench's contact set: the ball touches the shin
+    env = make("basketball", contact_set="reduced")  # where it does not
     m = env.mj_model
     ball_adr = free_joint_adr(m, "free_basketball")[0]
     ball = m.geom("basketball_collision").id
@@ -381,6 +382,9 @@ def test_basketball_ball_on_a_leg_ends_the_catch_stage_only_in_exact_mode():
     shin = d.geom("left_shin").xpos.copy()
     qpos = d.qpos.copy()
     qpos[ball_adr : ball_adr + 3] = shin + np.array([0.1, 0.0, 0.0])
+    shin_id = hb.mj_model.geom("left_shin").id
+    touching = _forward(hb, qpos)
+    assert {shin_id, ball} in [set(pair) for pair in touching.contact.geom[: touching.ncon]]
     d = _forward(env, qpos)
     assert not (d.contact.geom[: d.ncon] == ball).any()  # no contact with the ball in MuJoCo C
     state = {"stage": jnp.int32(CATCH), "angle": jnp.float32(0.0)}

@@ -41,6 +41,7 @@ from sirl_jax.envs.base import EnvState, VecEnv
 from sirl_jax.envs.humanoid import HumanoidEnv, Task, contact_arrays
 from sirl_jax.envs.physics import Physics
 from sirl_jax.envs.tasks import scene
+from sirl_jax.hb_compat import CONTACT_SETS, HB
 
 try:  # the contact slots MJX allocates per env (its collision driver's own count)
     from mujoco.mjx._src.collision_driver import make_condim as mjx_contact_dims
@@ -161,7 +162,13 @@ def main() -> None:
     parser.add_argument("--profile", action="store_true", help="measure the contact profiles")
     parser.add_argument("--max-geom-pairs", type=int, default=0,
                         help="also measure each task with this max_geom_pairs (a lever test)")
+    parser.add_argument("--contact-sets", default=HB,
+                        help=f"comma-separated contact sets for the manipulation tasks, each "
+                        f"measured (allowed: {', '.join(CONTACT_SETS)})")  # fmt: skip
     args = parser.parse_args()
+    contact_sets = [c for c in args.contact_sets.split(",") if c]
+    if not contact_sets or set(contact_sets) - set(CONTACT_SETS):
+        raise SystemExit(f"--contact-sets {args.contact_sets!r}: allowed {CONTACT_SETS}")
     if args.calls < 1 or args.rounds < 1:
         raise SystemExit(f"--calls and --rounds must be >= 1, got {args.calls}, {args.rounds}")
     rows = {r.name: r for r in (*tasks.LOCOMOTION, *tasks.MANIPULATION)}
@@ -194,11 +201,15 @@ def main() -> None:
             del stepper
     for name in chosen:
         row = rows[name]
-        variant = row.robot if row in tasks.MANIPULATION else args.variant
-        env = HumanoidEnv(row.task(), variant, success_bar=row.success_bar)
-        stepper = Stepper(env, args.num_envs, args.calls)
-        report(name, stepper, *side_by_side(stepper, bare, args.rounds))
-        del stepper
+        manipulation = row in tasks.MANIPULATION
+        variant = row.robot if manipulation else args.variant
+        for contact_set in contact_sets if manipulation else [HB]:
+            task = row.task().with_contact_set(contact_set)
+            env = HumanoidEnv(task, variant, success_bar=row.success_bar)
+            stepper = Stepper(env, args.num_envs, args.calls)
+            label = f"{name} {contact_set}" if manipulation and len(contact_sets) > 1 else name
+            report(label, stepper, *side_by_side(stepper, bare, args.rounds))
+            del stepper
         if args.max_geom_pairs:
             stepper = Stepper(with_max_geom_pairs(env, args.max_geom_pairs), args.num_envs,
                               args.calls)  # fmt: skip

@@ -71,6 +71,7 @@ from mujoco import mjx
 
 from experiments.fidelity.hb_side import joint_key, model_tables
 from sirl_jax.envs import load
+from sirl_jax.hb_compat import CONTACT_SETS, HB
 from sirl_jax.run.compile_cache import enable_compilation_cache
 
 HB_SIDE = Path(__file__).with_name("hb_side.py")
@@ -299,7 +300,7 @@ def _stats(delta: np.ndarray) -> dict:
 
 def check(name: str, args, workdir: Path) -> dict:
     t0 = time.perf_counter()
-    spec, env = load(name)
+    spec, env = load(name, contact_set=args.contact_set)
     short = name.removeprefix("h1hand-").removesuffix("-v0")
     notes = []
     kind = "fixture" if env.task.contacts == "manipulation" else "obstacle"
@@ -407,6 +408,7 @@ def check(name: str, args, workdir: Path) -> dict:
         "states": n,
         "episodes": episodes,
         "hb_compat": "exact",
+        "contact_set": args.contact_set,
         "contacts_ours": "MuJoCo C mj_forward on our model (MJX contacts: contact_parity)",
         "contacts": contacts,
         "reward": {
@@ -478,6 +480,12 @@ def main(argv=None) -> None:
     p.add_argument("--episode-steps", type=int, default=100)
     p.add_argument("--hb-checkout", default=None, help="CHECKOUT, if REFENV lacks humanoid_bench")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--contact-set",
+        choices=CONTACT_SETS,
+        default=HB,
+        help="our manipulation scenes' contact set (sirl_jax/hb_compat.py)",
+    )
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--keep", type=Path, default=None, help="folder for the exchanged .npz files")
     args = p.parse_args(argv)

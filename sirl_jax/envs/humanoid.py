@@ -37,11 +37,12 @@ from sirl_jax.envs import h1
 from sirl_jax.envs import physics as _physics
 from sirl_jax.envs.base import Env, EnvState, init_state
 from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, Simulator
-from sirl_jax.hb_compat import EXACT, check_hb_compat
+from sirl_jax.hb_compat import EXACT, HB, check_contact_set, check_hb_compat
 
 FRAME_SKIP = h1.N_SUBSTEPS
 """Physics substeps per control step (dt 0.002 s -> 50 Hz control), as in HumanoidBench."""
 RESET_NOISE = 0.01
+
 
 class Task(abc.ABC):
     """A HumanoidBench task: scene, randomisation, reward, termination, observation extras.
@@ -72,6 +73,17 @@ class Task(abc.ABC):
     hb_compat: str = EXACT
     """HumanoidBench's quirks: "exact" reproduces them, "fixed" corrects them (`hb_compat.py`,
     docs/tasks.md); set it with `with_hb_compat`. Tasks without quirks never read it."""
+
+    contact_set: str = HB
+    """What the scene's colliders touch: "hb" (HumanoidBench's set) or "reduced" (`hb_compat.py`);
+    set it with `with_contact_set`. Only manipulation scenes read it."""
+
+    def with_contact_set(self, contact_set: str) -> Task:
+        """A copy of this task that builds its scene with `contact_set` ("hb" or "reduced";
+        anything else raises ValueError naming the value and the allowed ones)."""
+        task = copy.copy(self)
+        task.contact_set = check_contact_set(contact_set)
+        return task
 
     def with_hb_compat(self, mode: str) -> Task:
         """A copy of this task that treats HumanoidBench's quirks as `mode` says ("exact" or

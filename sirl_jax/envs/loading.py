@@ -4,7 +4,8 @@ Names: a registry id (`h1hand-walk-v0`, `pendulum`), an alias (`walk`), or a pre
 for an optional family: `dmc:<Name>` / `playground:<Name>` (MuJoCo Playground, optional
 extra). The env is the source of truth for its episode length and success bar: the returned
 spec carries the env's values, so a factory override (`episode_length=...`) cannot leave the
-two disagreeing. `hb_compat` says how HumanoidBench's quirks are treated (`hb_compat.py`).
+two disagreeing. `hb_compat` says how HumanoidBench's quirks are treated and `contact_set`
+what the manipulation scenes' colliders touch (`hb_compat.py`).
 `physics` picks the MJX backend (`sirl_jax/envs/physics.py`): factories build
 MJX-JAX envs, and `with_physics` rebuilds one for another impl.
 """
@@ -17,7 +18,7 @@ from sirl_jax.envs.base import Env
 from sirl_jax.envs.physics import Physics, check_impl
 from sirl_jax.envs.playground_adapter import PREFIXES, register_playground_task
 from sirl_jax.envs.registry import TASKS, TaskSpec
-from sirl_jax.hb_compat import EXACT, check_hb_compat
+from sirl_jax.hb_compat import EXACT, HB, check_contact_set, check_hb_compat
 
 __all__ = ["PREFIXES", "load", "spec", "with_physics"]
 
@@ -54,20 +55,28 @@ def with_physics(env: Env, physics: Physics) -> Env:
 
 
 def load(
-    name: str, physics: Physics | None = None, hb_compat: str = EXACT, **kwargs
+    name: str,
+    physics: Physics | None = None,
+    hb_compat: str = EXACT,
+    contact_set: str = HB,
+    **kwargs,
 ) -> tuple[TaskSpec, Env]:
     """(spec, env) of a task; `kwargs` go to the task's factory (e.g. `episode_length`).
 
     physics: the MJX backend (None: MJX-JAX); impl="warp" is checked before anything is built.
     hb_compat: HumanoidBench's quirks, "exact" (reproduced) or "fixed" (corrected)
       (`sirl_jax/hb_compat.py`); checked for every task, used by HumanoidBench's tasks.
+    contact_set: "hb" (HumanoidBench's contacts) or "reduced" (the cheaper cut set of the
+      manipulation scenes); checked for every task, used by the manipulation tasks.
     """
     check_hb_compat(hb_compat)
+    check_contact_set(contact_set)
     if physics is not None:
         check_impl(physics.impl)
     registered = spec(name)
     if registered.takes_hb_compat:
         kwargs["hb_compat"] = hb_compat
+        kwargs["contact_set"] = contact_set
     env = registered.factory(**kwargs)
     if physics is not None:
         env = with_physics(env, physics)

@@ -24,7 +24,8 @@ class TaskSpec:
       success_bar: episode return counted as success (HumanoidBench's R_target), or None.
       aliases: short names that resolve to this id (e.g. `walk`).
       description: one line for `--help` and the docs.
-      takes_hb_compat: the factory takes `hb_compat` (HumanoidBench's tasks; `load` passes it).
+      takes_hb_compat: the factory takes `hb_compat` and `contact_set` (HumanoidBench's tasks;
+        `load` passes them).
     """
 
     id: str

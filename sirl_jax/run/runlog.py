@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from sirl_jax.config import Config, config_from_dict
+from sirl_jax.hb_compat import REDUCED
 
 _PACKAGES = (
     "jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "optax", "orbax-checkpoint", "chex",
@@ -49,12 +50,16 @@ class RunDirError(ValueError):
 
 
 def load_config(run_dir: Path) -> Config:
-    """The config saved in `run_dir/config.json`; RunDirError if absent or invalid."""
+    """The config saved in `run_dir/config.json`; RunDirError if absent or invalid. A config
+    saved before `train.contact_set` existed reads as "reduced", the set it was trained with."""
     path = run_dir / "config.json"
     if not path.is_file():
         raise RunDirError(f"{run_dir} is not a run directory (no config.json)")
     try:
-        return config_from_dict(Config, json.loads(path.read_text()), str(path))
+        raw = json.loads(path.read_text())
+        if isinstance(raw.get("train"), dict):
+            raw["train"].setdefault("contact_set", REDUCED)
+        return config_from_dict(Config, raw, str(path))
     except (TypeError, ValueError) as e:
         raise RunDirError(f"{path} is invalid: {e}") from e
 

@@ -20,7 +20,7 @@ import jax
 from sirl_jax.config import Config, config_to_dict
 from sirl_jax.envs import load
 from sirl_jax.envs import spec as registered_spec
-from sirl_jax.hb_compat import EXACT
+from sirl_jax.hb_compat import EXACT, HB
 from sirl_jax.run import progress as prog
 from sirl_jax.run import runlog
 from sirl_jax.run.checkpoint import Checkpointer, CheckpointWriteError
@@ -36,12 +36,15 @@ _EVAL_STREAM = 0x6576616C  # folded into the seed so evaluation keys never meet 
 # ---------------------------------------------------------------- building blocks
 
 
-def load_task(task: str, build_env: bool = True, hb_compat: str = EXACT):
+def load_task(task: str, build_env: bool = True, hb_compat: str = EXACT, contact_set: str = HB):
     """(TaskSpec, Env) of a task name, with bad names and missing extras as UsageError;
     `build_env=False`: the registered spec alone, (spec, None), nothing compiled. `hb_compat`:
-    HumanoidBench's quirks, "exact" or "fixed" (`sirl_jax/hb_compat.py`)."""
+    HumanoidBench's quirks, "exact" or "fixed"; `contact_set`: "hb" or "reduced"
+    (`sirl_jax/hb_compat.py`)."""
     try:
-        return load(task, hb_compat=hb_compat) if build_env else (registered_spec(task), None)
+        if build_env:
+            return load(task, hb_compat=hb_compat, contact_set=contact_set)
+        return (registered_spec(task), None)
     except KeyError as e:
         raise UsageError(e.args[0]) from e
     except ImportError as e:
@@ -56,7 +59,7 @@ def build(config: Config) -> tuple[Any, Train]:
     from sirl_jax.envs.physics import Physics
 
     t = config.train
-    spec, env = load_task(t.task, hb_compat=t.hb_compat)
+    spec, env = load_task(t.task, hb_compat=t.hb_compat, contact_set=t.contact_set)
     try:
         env = with_physics(env, Physics(t.impl, num_worlds=max(t.num_envs, t.eval_episodes)))
     except (ImportError, RuntimeError, ValueError) as e:

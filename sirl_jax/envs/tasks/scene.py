@@ -111,6 +111,54 @@ def use_hand_contacts(spec: mujoco.MjSpec) -> None:
         geom.contype, geom.conaffinity = 0, HANDS
 
 
+PRISM_SIDES = 16
+"""Sides of the prism that stands in for a colliding cylinder in the `hb` contact set."""
+
+
+def use_hb_contacts(spec: mujoco.MjSpec) -> None:
+    """HumanoidBench's contact set (`contact_set="hb"`, sirl_jax/hb_compat.py): every fixture
+    touches the robot's colliders and hands, every free object touches the robot's colliders,
+    the hands and the other objects. Call it once the scene is built.
+
+    Fixtures (contype FIXTURE, conaffinity 0) gain FLOOR | HANDS in contype: the robot's
+    colliders have conaffinity FLOOR, the hands HANDS; fixtures still never touch each other or
+    the floor. Objects (conaffinity FIXTURE) gain HANDS | OBJECT in contype and
+    OBJECT | ROBOT_CONTYPE in conaffinity. MJX has no box-cylinder pair, and the robot's soles
+    and palms are boxes, so every colliding cylinder becomes a `PRISM_SIDES`-gon prism of the
+    same area and length (`cylinder_to_prism`)."""
+    for geom in spec.geoms:
+        if geom.contype & FIXTURE and geom.conaffinity == 0:
+            geom.contype |= FLOOR | HANDS
+        elif geom.conaffinity & FIXTURE:
+            geom.contype |= HANDS | OBJECT
+            geom.conaffinity |= OBJECT | h1.ROBOT_CONTYPE
+    for geom in list(spec.geoms):
+        if geom.type == CYLINDER and (geom.contype or geom.conaffinity):
+            cylinder_to_prism(spec, geom, PRISM_SIDES)
+
+
+def prism_radius(radius: float, sides: int) -> float:
+    """Circumradius of the regular `sides`-gon whose area is that of a circle of `radius`: its
+    vertices lie 1.3% outside the circle and its edge midpoints 0.65% inside (16 sides)."""
+    return radius * math.sqrt(2 * math.pi / (sides * math.sin(2 * math.pi / sides)))
+
+
+def cylinder_to_prism(spec: mujoco.MjSpec, geom: mujoco.MjsGeom, sides: int) -> None:
+    """Turns a cylinder geom into a convex mesh prism along its z axis: same frame, length and
+    cross-section area (`prism_radius`). MJX collides meshes with boxes (`convex_convex`)."""
+    radius, half = float(geom.size[0]), float(geom.size[1])
+    r = prism_radius(radius, sides)
+    verts = []
+    for z in (-half, half):
+        for k in range(sides):
+            a = 2 * math.pi * k / sides
+            verts += [r * math.cos(a), r * math.sin(a), z]
+    mesh = spec.add_mesh(name=f"{geom.name or 'cylinder'}_prism_{len(spec.meshes)}")
+    mesh.uservert = verts
+    geom.type = mujoco.mjtGeom.mjGEOM_MESH
+    geom.meshname = mesh.name
+
+
 def add_fixture(spec: mujoco.MjSpec, parent=None, **kwargs) -> mujoco.MjsGeom:
     """A static collider that free objects rest on (table top, legs); the robot passes through."""
     parent = spec.worldbody if parent is None else parent

@@ -18,6 +18,7 @@ import numpy as np
 
 from sirl_jax.envs.humanoid import Task
 from sirl_jax.envs.tasks import scene
+from sirl_jax.hb_compat import HB
 
 # HumanoidBench's task keyframes put the robot in the stand pose; some set arm joints as well.
 STAND_ROBOT_QPOS = (0, 0, 0.98, 1, 0, 0, 0) + (0, 0, -0.4, 0.8, -0.4) * 2 + (0,) * 59
@@ -87,9 +88,10 @@ class ManipulationTask(Task):
     """A HumanoidBench manipulation task (h1hand, or h1strong for highbar).
 
     `build`: the hand colliders touch free objects only (`scene.use_hand_contacts`), then the
-    task's `build_scene`, then keyframe 0 = `robot_qpos` followed by `object_qpos` (HumanoidBench's
-    task `qpos0`), then `max_geom_pairs` (MJX keeps that many candidate pairs per collision
-    function; the scene's fixtures are many static geoms).
+    task's `build_scene`, then HumanoidBench's contact set unless `contact_set` is "reduced"
+    (`scene.use_hb_contacts`), then keyframe 0 = `robot_qpos` followed by `object_qpos`
+    (HumanoidBench's task `qpos0`), then `max_geom_pairs` (MJX keeps that many candidate pairs
+    per collision function; the scene's fixtures are many static geoms).
     """
 
     contacts = "manipulation"
@@ -102,6 +104,8 @@ class ManipulationTask(Task):
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         scene.use_hand_contacts(spec)
         self.build_scene(spec, variant)
+        if self.contact_set == HB:
+            scene.use_hb_contacts(spec)
         set_keyframe(spec, self.robot_qpos, self.object_qpos)
         scene.set_max_geom_pairs(spec, self.max_geom_pairs)
 
