@@ -7,7 +7,9 @@ MJX and ask for the same outcome within `MJX_TOL`."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
+import json
 
 import jax
 import mujoco
@@ -15,8 +17,10 @@ import numpy as np
 import pytest
 from mujoco import mjx
 
+from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import load
 from sirl_jax.envs.tasks import scene
+from sirl_jax.run import runlog
 
 GAP = 0.02  # start: the moving geom this far from the fixture's face (m)
 FORCE = 40.0  # N on the moving body, towards the fixture
@@ -289,3 +293,15 @@ def test_mjx_agrees_with_c_on_the_dropped_book():
     c = gap_after_drop(*drop_case("hb"), "c")
     j = gap_after_drop(*drop_case("hb"), "mjx")
     assert abs(j) < HELD and abs(j - c) < MJX_TOL, (c, j)
+
+
+def test_contact_set_is_checked_and_old_runs_resume_as_reduced(tmp_path):
+    with pytest.raises(ValueError, match=r"contact_set.*'full'.*'hb', 'reduced'"):
+        load("push", contact_set="full")
+    with pytest.raises(ValueError, match=r"train.contact_set"):
+        TrainConfig(contact_set="HB")
+    saved = dataclasses.asdict(Config())
+    assert saved["train"]["contact_set"] == "hb"
+    del saved["train"]["contact_set"]  # a config.json written before the switch existed
+    (tmp_path / "config.json").write_text(json.dumps(saved))
+    assert runlog.load_config(tmp_path).train.contact_set == "reduced"
