@@ -71,6 +71,7 @@ from mujoco import mjx
 
 from experiments.fidelity.hb_side import joint_key, model_tables
 from sirl_jax.envs import load
+from sirl_jax.envs.loading import spec as task_spec
 from sirl_jax.hb_compat import CONTACT_SETS, HB
 from sirl_jax.run.compile_cache import enable_compilation_cache
 
@@ -490,7 +491,7 @@ def main(argv=None) -> None:
     p.add_argument("--keep", type=Path, default=None, help="folder for the exchanged .npz files")
     args = p.parse_args(argv)
     enable_compilation_cache()
-    names = [t if t.startswith("h1") else f"h1hand-{t}-v0" for t in args.tasks.split(",")]
+    names = [t if t.startswith("h1") else task_spec(t).id for t in args.tasks.split(",")]
     results: dict[str, dict] = {}
     if args.out and args.out.exists():
         results = json.loads(args.out.read_text())
