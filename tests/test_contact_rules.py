@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 import pytest
 from mujoco import mjx
+from shapes import support
 
 from sirl_jax.envs.humanoid import HumanoidEnv
 from sirl_jax.envs.tasks.locomotion.obstacles import (
@@ -55,12 +56,7 @@ TASKS = {"hurdle": HurdleTask, "maze": MazeTask, "pole": PoleTask}
 
 def _support(m, d, g, u) -> float:
     """The largest u-coordinate of geom g's surface (sphere, capsule, box)."""
-    c, rot, size = d.geom_xpos[g], d.geom_xmat[g].reshape(3, 3), m.geom_size[g]
-    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE:
-        return c @ u + size[0]
-    if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE:
-        return c @ u + abs(rot[:, 2] @ u) * size[1] + size[0]
-    return c @ u + np.abs(rot.T @ u) @ size
+    return support(m.geom_type[g], m.geom_size[g], d.geom_xpos[g], d.geom_xmat[g].reshape(3, 3), u)
 
 
 def construct(env, obstacle, part, joints, u, shift, depth):

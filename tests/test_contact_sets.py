@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 import pytest
 from mujoco import mjx
+from shapes import support
 
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import load
@@ -45,17 +46,6 @@ def _colliders(m: mujoco.MjModel, body: str) -> list[int]:
     b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)
     return [g for g in range(m.ngeom) if m.geom_bodyid[g] == b
             and (m.geom_contype[g] or m.geom_conaffinity[g])]  # fmt: skip
-
-
-def support(gtype: int, size, pos, mat, u) -> float:
-    """max over the geom of x . u (box, capsule or sphere; `mat` [3, 3] columns = axes)."""
-    centre, axes = float(np.dot(pos, u)), np.abs(np.asarray(mat).T @ u)
-    if gtype == scene.BOX:
-        return centre + float(axes @ size)
-    if gtype == scene.CAPSULE:
-        return centre + size[0] + axes[2] * size[1]
-    assert gtype == scene.SPHERE, gtype
-    return centre + size[0]
 
 
 def _limp_weightless(m: mujoco.MjModel) -> mujoco.MjModel:
@@ -122,23 +112,24 @@ def press_case(task: str, contact_set: str, mover: str, fixture: str | int, u, h
     return m, d, geoms, u, tip + GAP
 
 
-def depth_c(m, d, geoms, u, face) -> float:
-    """How far the mover's extreme point ends inside the plate after `STEPS` (MuJoCo C)."""
-    for _ in range(STEPS):
-        mujoco.mj_step(m, d)
-    return _tip(m, d.geom_xpos, d.geom_xmat, geoms, u) - face
+def simulate(m, d, backend: str) -> tuple[np.ndarray, np.ndarray]:
+    """(geom_xpos, geom_xmat) after `STEPS` physics steps from `d`, in MuJoCo C ("c") or MJX
+    (one jitted `lax.scan`)."""
+    if backend == "c":
+        for _ in range(STEPS):
+            mujoco.mj_step(m, d)
+        return d.geom_xpos, d.geom_xmat
+    mx = mjx.put_model(m)
+    run = jax.jit(lambda s: jax.lax.scan(lambda c, _: (mjx.step(mx, c), None), s, None,
+                                         length=STEPS)[0])  # fmt: skip
+    out = jax.device_get(run(mjx.put_data(m, d)))
+    return np.asarray(out.geom_xpos), np.asarray(out.geom_xmat)
 
 
-def depth_mjx(m, d, geoms, u, face) -> float:
-    """The same in MJX."""
-    mx, dx = mjx.put_model(m), mjx.put_data(m, d)
-
-    @jax.jit
-    def run(dx):
-        return jax.lax.scan(lambda s, _: (mjx.step(mx, s), None), dx, None, length=STEPS)[0]
-
-    dx = jax.device_get(run(dx))
-    return _tip(m, np.asarray(dx.geom_xpos), np.asarray(dx.geom_xmat), geoms, u) - face
+def depth(m, d, geoms, u, face, backend: str = "c") -> float:
+    """How far the mover's extreme point ends inside the plate after `STEPS`."""
+    xpos, xmat = simulate(m, d, backend)
+    return _tip(m, xpos, xmat, geoms, u) - face
 
 
 def _cabinet_wall(m) -> int:
@@ -162,8 +153,8 @@ def _case(name: str, contact_set: str):
 @pytest.mark.timeout(300)
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_robot_stops_on_fixtures_with_hb_contacts_only(name):
-    held = depth_c(*_case(name, "hb"))
-    through = depth_c(*_case(name, "reduced"))
+    held = depth(*_case(name, "hb"))
+    through = depth(*_case(name, "reduced"))
     assert held < HELD, (name, held)
     assert through > THROUGH, (name, through)
 
@@ -199,20 +190,8 @@ def drop_case(contact_set: str):
 def gap_after_drop(m, d, top, base, backend: str) -> float:
     """How far the dropped book's bottom ends above the base book's top (< 0: inside)."""
     up = np.array([0.0, 0.0, 1.0])
-    if backend == "c":
-        for _ in range(STEPS):
-            mujoco.mj_step(m, d)
-        xpos, xmat = d.geom_xpos, d.geom_xmat
-    else:
-        mx, dx = mjx.put_model(m), mjx.put_data(m, d)
-        run = jax.jit(lambda s: jax.lax.scan(lambda c, _: (mjx.step(mx, c), None), s, None,
-                                             length=STEPS)[0])  # fmt: skip
-        dx = jax.device_get(run(dx))
-        xpos, xmat = np.asarray(dx.geom_xpos), np.asarray(dx.geom_xmat)
-    bottom = -support(m.geom_type[top], m.geom_size[top], xpos[top],
-                      xmat[top].reshape(3, 3), -up)  # fmt: skip
-    tip = support(m.geom_type[base], m.geom_size[base], xpos[base], xmat[base].reshape(3, 3), up)
-    return bottom - tip
+    xpos, xmat = simulate(m, d, backend)
+    return -_tip(m, xpos, xmat, [top], -up) - _tip(m, xpos, xmat, [base], up)
 
 
 @pytest.mark.timeout(300)
@@ -274,8 +253,8 @@ def test_every_manipulation_task_has_no_colliding_cylinder_in_hb():
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_mjx_agrees_with_c_on_the_pressed_robot(name):
-    c = depth_c(*_case(name, "hb"))
-    j = depth_mjx(*_case(name, "hb"))
+    c = depth(*_case(name, "hb"))
+    j = depth(*_case(name, "hb"), backend="mjx")
     assert j < HELD and abs(j - c) < MJX_TOL, (name, c, j)
 
 

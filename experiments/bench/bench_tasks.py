@@ -210,7 +210,7 @@ def main() -> None:
             label = f"{name} {contact_set}" if manipulation and len(contact_sets) > 1 else name
             report(label, stepper, *side_by_side(stepper, bare, args.rounds))
             del stepper
-        if args.max_geom_pairs:
+        if args.max_geom_pairs:  # on the env of the last contact set measured
             stepper = Stepper(with_max_geom_pairs(env, args.max_geom_pairs), args.num_envs,
                               args.calls)  # fmt: skip
             report(f"{name} k{args.max_geom_pairs}", stepper,

@@ -83,8 +83,7 @@ class Sizes:
     repeats: int = 3
     caveat: str = ""
     fasttd3: AgentConfig = dataclasses.field(
-        default_factory=lambda: get_preset("fasttd3-gpu").agent
-    )
+        default_factory=lambda: get_preset("fasttd3-gpu").agent)
     fasttd3_envs: int = 1024
 
     @classmethod
@@ -92,11 +91,8 @@ class Sizes:
         return cls(
             env_task="pendulum",
             # reach and hurdle by the full id: the projection's env swap runs (a no-op here)
-            tasks=(
-                ("walk", "pendulum"),
-                ("reach", "pendulum-swingup-v0"),
-                ("hurdle", "pendulum-swingup-v0"),
-            ),  # fmt: skip
+            tasks=(("walk", "pendulum"), ("reach", "pendulum-swingup-v0"),
+                   ("hurdle", "pendulum-swingup-v0")),  # fmt: skip
             env_envs=(1, 3),
             env_chunk=5,
             agent=AgentConfig.tiny(),
@@ -407,8 +403,10 @@ def main(argv: list[str] | None = None) -> None:
         "throughput": lambda: (bench.train(throughput), bench.project(throughput)),
         "warp": lambda: [bench.env("warp", e, warp) for e in sizes.env_envs],
     }
-    chosen = set(args.rows or ROW_GROUPS) | ({"matmul"} if "agent" in (args.rows or ()) else set())
-    for group in ROW_GROUPS:  # the agent rows' "x its matmul time" needs the matmul row
+    chosen = set(args.rows or ROW_GROUPS)
+    if "agent" in chosen:  # the agent rows' "x its matmul time" needs the matmul row
+        chosen.add("matmul")
+    for group in ROW_GROUPS:
         if group in chosen:
             groups[group]()
     table.write()

@@ -491,7 +491,7 @@ def main(argv=None) -> None:
     p.add_argument("--keep", type=Path, default=None, help="folder for the exchanged .npz files")
     args = p.parse_args(argv)
     enable_compilation_cache()
-    names = [t if t.startswith("h1") else task_spec(t).id for t in args.tasks.split(",")]
+    names = [task_spec(t).id for t in args.tasks.split(",")]  # ids or aliases
     results: dict[str, dict] = {}
     if args.out and args.out.exists():
         results = json.loads(args.out.read_text())
