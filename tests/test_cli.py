@@ -131,6 +131,7 @@ def test_run_dir_layout(runs):
     assert Checkpointer(a / "checkpoints").steps() == [STEPS]
 
 
+@pytest.mark.slow  # 1.8 min: the eval command's compile and a direct evaluate
 @pytest.mark.timeout(300)
 def test_eval_command_reproduces_the_logged_evaluation(runs, capsys):
     """`eval RUN_DIR --episodes 1` (the run's own eval size) writes the numbers the run logged,

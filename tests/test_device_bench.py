@@ -19,6 +19,7 @@ def _is_reason(row: dict) -> bool:
     return "impl=warp" in row["row"] and row["value"] == "not installed"
 
 
+@pytest.mark.slow  # 3.4 min: every row of the table once, at --quick
 @pytest.mark.timeout(1200)
 def test_quick_run_has_every_row_with_a_positive_figure(tmp_path):
     out = tmp_path / "device.json"

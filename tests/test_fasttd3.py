@@ -145,6 +145,7 @@ def _config(**train) -> Config:
     return Config(agent=agent, train=TrainConfig(**{**base, **train}))
 
 
+@pytest.mark.slow  # 1.9 min: two fused-step compiles (vmapped and single)
 @pytest.mark.timeout(420)
 def test_train_step_compiles_once_and_vmapped_seeds_equal_single_runs():
     train = make_train(_config(), PendulumSwingup(episode_length=T))
@@ -194,6 +195,7 @@ BASE = ["--preset", "fasttd3-smoke", "--task", "pendulum", "--steps", str(STEPS)
         "--no-progress"]  # fmt: skip
 
 
+@pytest.mark.slow  # 3 min: train, resume, eval, export compiles (test_cli covers the shared shell)
 @pytest.mark.timeout(600)
 def test_cli_trains_resumes_bit_identical_evaluates_and_exports(tmp_path, capsys):
     from test_cli import _load_final, train_interrupted

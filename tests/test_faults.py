@@ -90,6 +90,7 @@ def blowup_runs():
     return clean, faulty
 
 
+@pytest.mark.slow  # 1.7 min: two 2-env rollouts of the fused step
 @pytest.mark.timeout(600)
 def test_blowup_resets_one_env_and_leaves_the_others_bit_identical(blowup_runs):
     (clean_envs, clean_m, clean_end), (envs, m, end) = blowup_runs
@@ -125,6 +126,7 @@ def test_blowup_resets_one_env_and_leaves_the_others_bit_identical(blowup_runs):
     assert int(buf.episodes_recorded) == 0 and buf.r_max == -np.inf
 
 
+@pytest.mark.slow  # 1.6 min: its own env and eval compiles
 @pytest.mark.timeout(300)
 def test_a_physics_only_blowup_is_caught_and_eval_leaves_that_episode_out():
     """qvel NaN with a finite observation is still a blow-up (the physics check). In eval the

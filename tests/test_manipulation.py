@@ -44,7 +44,8 @@ HB = {
 }
 NAMES = [row.name for row in tasks.MANIPULATION]
 IDS = {row.name: tasks.task_id(row.robot, row.name) for row in tasks.MANIPULATION}
-CI_IDS = ("h1hand-push-v0", "h1hand-cube-v0")
+# CI: push (only success ends it); every other task's rollout, about 2 min each, runs in test-slow.
+CI_IDS = ("h1hand-push-v0",)
 ROOT_Z_TERMINATION = {"powerlift": 0.2, "spoon": 0.58, "insert_normal": 0.5}
 ONLY_SUCCESS_ENDS = ("push", "package", "cabinet", "truck", "kitchen")
 

@@ -24,6 +24,7 @@ def test_scale_configs():
         scale_config("gpu", "walk")
 
 
+@pytest.mark.slow  # 3.4 min: two vmapped seeds of the smoke agent, 600 steps, resumed
 @pytest.mark.timeout(600)
 def test_run_arm_writes_resumes_and_finishes_once(tmp_path):
     cfg = get_preset("smoke")
