@@ -258,16 +258,9 @@ def test_mjx_agrees_with_c_on_the_pressed_robot(name):
     assert j < HELD and abs(j - c) < MJX_TOL, (name, c, j)
 
 
-@pytest.mark.slow
-@pytest.mark.timeout(900)
-@pytest.mark.xfail(
-    strict=True,
-    reason=(
-        "MJX keeps bookshelf's 12 nearest box-box candidate pairs by bounding sphere; the shelf "
-        "boards' large spheres rank the book-book pair 78th of 720, so MJX drops it (C lands the "
-        "book; MJX with max_geom_pairs 400 lands it within 0.1 mm). Lever: segmented boards."
-    ),
-)
+# Failed while bookshelf's whole side and back panels (0.96-0.99 m bounding spheres) outranked
+# the book-book pair (78th of 720) in MJX's cull of 12: segmented panels and a cap of 32 keep it.
+@pytest.mark.timeout(600)
 def test_mjx_agrees_with_c_on_the_dropped_book():
     c = gap_after_drop(*drop_case("hb"), "c")
     j = gap_after_drop(*drop_case("hb"), "mjx")

@@ -260,17 +260,27 @@ _GREY = {"rgba": (0.59, 0.61, 0.62, 1)}
 _RED = {"rgba": (0.25, 0, 0, 1)}
 
 
+SHELF_PANEL_SEGMENT = 0.6
+"""Longest piece (m) of the shelf's top, sides and back panel (`add_shelf`)."""
+
+
 def add_shelf(spec: mujoco.MjSpec, pos: Sequence[float]) -> mujoco.MjsBody:
     """HumanoidBench's shelf (static fixture): six 0.6 x 0.8 m boards 0.3 m apart from z 0,
-    a top board, two sides and a back panel at +x."""
+    a top board, two sides and a back panel at +x.
+
+    The top, sides and back are cut into pieces of at most `SHELF_PANEL_SEGMENT`
+    (`add_segmented_box`; the same solid). Whole, their 0.96-0.99 m bounding spheres outrank
+    the pairs that hold the objects on the boards in MJX's `max_geom_pairs` cull
+    (experiments/fidelity/pair_cap.py; docs/tasks.md, "Contact sets")."""
     shelf = spec.worldbody.add_body(name="shelf", pos=pos)
     for z in (0.025, 0.325, 0.625, 0.925, 1.225, 1.525):
         add_fixture(spec, shelf, pos=(0, 0, z), size=(0.3, 0.4, 0.025), rgba=WOOD)
-    for p, half in (((0.025, 0, 1.825), (0.325, 0.45, 0.025)),
-                    ((0.025, 0.425, 0.9), (0.325, 0.025, 0.9)),
-                    ((0.025, -0.425, 0.9), (0.325, 0.025, 0.9)),
-                    ((0.325, 0, 0.9), (0.025, 0.4, 0.9))):  # fmt: skip
-        add_fixture(spec, shelf, pos=p, size=half, rgba=WOOD)
+    for name, p, half in (("shelf_top", (0.025, 0, 1.825), (0.325, 0.45, 0.025)),
+                          ("shelf_side_l", (0.025, 0.425, 0.9), (0.325, 0.025, 0.9)),
+                          ("shelf_side_r", (0.025, -0.425, 0.9), (0.325, 0.025, 0.9)),
+                          ("shelf_back", (0.325, 0, 0.9), (0.025, 0.4, 0.9))):  # fmt: skip
+        add_segmented_box(shelf, name, p, half, SHELF_PANEL_SEGMENT, contype=FIXTURE,
+                          conaffinity=0, rgba=WOOD)  # fmt: skip
     return shelf
 
 

@@ -113,7 +113,7 @@ class BookshelfTask(ManipulationTask):
     extra_obs_size = 1
     object_qpos = tuple(v for name in OBJECTS for v in (
         *_POSES[name], *(() if len(_POSES[name]) == 7 else (1.0, 0.0, 0.0, 0.0))))  # fmt: skip
-    max_geom_pairs = 12
+    max_geom_pairs = 32
 
     def __init__(self, name: str):
         if name not in ("bookshelf_simple", "bookshelf_hard"):

@@ -166,7 +166,7 @@ class KitchenTask(ManipulationTask):
     robot_qpos = with_robot_entries({1: ROOT_POS[1], 2: ROOT_POS[2], 3: ROOT_QUAT[0],
                                      6: ROOT_QUAT[3]})  # fmt: skip
     object_qpos = OBJECT_QPOS0
-    max_geom_pairs = 12
+    max_geom_pairs = 16
     name = "kitchen"
     metric_names = (
         "success_subtasks", "success", "microwave_distance", "kettle_distance",
