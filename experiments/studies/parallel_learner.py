@@ -3,7 +3,7 @@
     .venv/bin/python -m experiments.studies.parallel_learner --arm beta0    # 3 seeds, beta 0
     .venv/bin/python -m experiments.studies.parallel_learner --arm beta1    # 3 seeds, beta 1
     .venv/bin/python -m experiments.studies.parallel_learner --report \
-        --tdmpc2 results/sit_simple/study/tdmpc2 --out docs/results/parallel_learner
+        --results results/parallel_learner --out docs/results/parallel_learner
 
 An arm trains 3 seeds of the `fasttd3-cpu` preset (32 envs per seed, batch 1024, critic 512,
 actor 256; `sirl_jax/presets.py`) vmapped in one program, at beta 0 (FastTD3) or beta 1
@@ -89,7 +89,8 @@ def summarize(results: Path, tdmpc2: Path, random_json: Path) -> dict:
             "tdmpc2_final_steps": [int(c["steps"][-1]) for c in td.values()]}  # fmt: skip
 
 
-def figure(results: Path, tdmpc2: Path, bar: float, out: Path) -> None:
+def figure(results: Path, tdmpc2: Path, bar: float, out: Path,
+           zero_action: float | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -106,6 +107,9 @@ def figure(results: Path, tdmpc2: Path, bar: float, out: Path) -> None:
                 ax.plot(c[clock], c["return"], color=color, marker=".", lw=1,
                         label=label if i == 0 else None)  # fmt: skip
         ax.axhline(bar, color="k", lw=0.8, label=f"10x random ({bar:.0f})")
+        if zero_action is not None:
+            ax.axhline(zero_action, color="k", ls="--", lw=0.8,
+                       label=f"zero action ({zero_action:.0f})")
         ax.set_xlabel(xlabel)
     axes[0].set_ylabel("eval return (eval mode, 4 episodes)")
     axes[0].legend(fontsize=7, loc="upper left")
@@ -126,10 +130,12 @@ class Args:
     steps: int = 200_000
     num_envs: int = 32
     results: str = "results/parallel_learner"
-    tdmpc2: str = "results/sit_simple/study/tdmpc2"
+    tdmpc2: str = "docs/results/sit_simple_study/study/tdmpc2"
     """The TD-MPC2 study arm drawn beside the FastTD3 arms."""
-    random: str = "results/sit_simple/random.json"
+    random: str = "docs/results/sit_simple_study/random.json"
     """The random policy's return on the task (`sit_simple --random-episodes 64`)."""
+    zero_action: str | None = "docs/results/sit_simple_study/zero_action.json"
+    """The zero action's return on the task, drawn as a dashed line (None: not drawn)."""
     out: str = "docs/results/parallel_learner"
 
 
@@ -145,7 +151,8 @@ def main(args: Args) -> None:
         summary = summarize(root, tdmpc2, Path(args.random))
         out.mkdir(parents=True, exist_ok=True)
         (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-        figure(root, tdmpc2, 10 * summary["random_return"], out / "figure.png")
+        zero = json.loads(Path(args.zero_action).read_text())["mean"] if args.zero_action else None
+        figure(root, tdmpc2, 10 * summary["random_return"], out / "figure.png", zero)
         for arm, v in summary["arms"].items():
             print(f"{arm}: final {np.round(v['final'], 1)} at {v['final_steps']} steps, hours to "
                   f"10x {v['hours_to_10x']} (CPU hours {v['cpu_hours_to_10x']})")  # fmt: skip
