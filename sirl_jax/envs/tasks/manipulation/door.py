@@ -38,7 +38,9 @@ _WALLS = (
     ((-1.31, -0.7, 1.19), (1.19, 0.12, 1.19)), ((-1.31, 0.7, 1.19), (1.19, 0.12, 1.19)),
     ((-2.35, 0, 1.19), (0.15, 0.58, 1.19)),
 )  # fmt: skip
-WALL_SEGMENT = 1.2  # m: the corridor walls are cut into pieces MJX's broad phase can rank
+SEGMENT = 0.6
+"""m: the door panel and the corridor walls are cut into pieces no longer than this, so that
+MJX's cull ranks the pairs that touch over the far parts of a large box (`pair_cap`)."""
 PASSAGE_X, PASSAGE_MARGIN = 1.2, 1.0
 HATCH_OPEN, HATCH_MARGIN = (0.75, 2.0), 0.75
 HAND_BOUND, HAND_MARGIN = 0.25, 1.0
@@ -96,12 +98,13 @@ class DoorTask(ManipulationTask):
     1.4 rad), with a sprung handle (the hatch, 0 to 2 rad); the robot starts in a walled corridor.
     Terminates when the root drops below 0.58 m. Observation: full qpos and qvel (155).
 
-    Contacts: the door, the handle and the walls touch every robot collider (HumanoidBench's full
-    collision between robot and scene); the door and the handle also touch the hand colliders,
-    the walls only the robot's body, legs and arms. MJX has no cylinder-box pair (it refuses such
-    a model), so the handle's grips and pins are capsules of the cylinders' length and its two
-    hubs (r 0.05 cylinders as long as wide) are spheres of their radius; the mass and inertia
-    come from HumanoidBench's cylinders (non-colliding geoms)."""
+    Contacts: the door, the handle and the walls touch every robot collider, the hand colliders
+    included (HumanoidBench's full collision between robot and scene: its palms touch the
+    corridor walls). The panel and the walls are cut into `SEGMENT` pieces. MJX has no
+    cylinder-box pair (it refuses such a model), so the handle's grips and pins are capsules of
+    the cylinders' length and its two hubs (r 0.05 cylinders as long as wide) are spheres of
+    their radius; the mass and inertia come from HumanoidBench's cylinders (non-colliding
+    geoms)."""
 
     object_qpos = (0.0, 0.0)  # the door and hatch hinges
     max_geom_pairs = 12
@@ -118,8 +121,8 @@ class DoorTask(ManipulationTask):
                        limited=mujoco.mjtLimited.mjLIMITED_TRUE, stiffness=HINGE_STIFFNESS)
         scene.add_mass_geom(door, DOOR_DENSITY, type=scene.BOX, pos=(0, 0, 1), size=DOOR_HALF,
                             rgba=(0.8, 0.8, 0.83, 1))  # fmt: skip
-        door.add_geom(name="door_collision", type=scene.BOX, pos=(0, 0, 1), size=DOOR_HALF,
-                      contype=touch_all, conaffinity=0, group=3, density=0.0)  # fmt: skip
+        scene.add_segmented_box(door, "door_collision", (0, 0, 1), DOOR_HALF, SEGMENT,
+                                contype=touch_all, conaffinity=0, density=0.0)  # fmt: skip
         hatch = door.add_body(name="door_hatch", pos=HATCH_POS, gravcomp=1.0)
         hatch.add_joint(name="door_hatch_hinge", axis=(1, 0, 0), range=HATCH_RANGE,
                         limited=mujoco.mjtLimited.mjLIMITED_TRUE, stiffness=HATCH_STIFFNESS)
@@ -133,9 +136,9 @@ class DoorTask(ManipulationTask):
             hatch.add_geom(type=gtype, pos=pos, size=size, quat=_AXES[axis], contype=touch_all,
                            conaffinity=0, group=3, density=0.0)  # fmt: skip
         walls = spec.worldbody.add_body(name="door_walls", pos=DOOR_POS)
-        for k, (pos, half) in enumerate(_WALLS):  # the robot's body, legs and arms only
-            scene.add_segmented_box(walls, f"wall_{k}", pos, half, WALL_SEGMENT,
-                                    contype=scene.FLOOR, conaffinity=0, rgba=(0.8, 0.8, 0.83, 0.3))
+        for k, (pos, half) in enumerate(_WALLS):  # every robot collider, hands included
+            scene.add_segmented_box(walls, f"wall_{k}", pos, half, SEGMENT,
+                                    contype=touch_all, conaffinity=0, rgba=(0.8, 0.8, 0.83, 0.3))
 
     def bind(self, model, robot) -> None:
         self._door_q = int(model.jnt_qposadr[model.joint("door_hinge").id])
