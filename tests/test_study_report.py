@@ -88,10 +88,19 @@ def test_parallel_learner_summary_times_each_seed_to_10x_random(tmp_path):
     assert s["tdmpc2_hours_to_10x"] == [1.0, None]  # the planner column, not the prior's
     assert s["tdmpc2_cpu_hours_to_10x"] == [0.5, None]
     out = tmp_path / "out"
+    # the official FastTD3's log: tqdm's carriage returns, other lines, two evaluations
+    log = tmp_path / "official.log"
+    log.write_text("Using FastTD3\n 10%|#  | 300/6260\rEVAL env_steps=9600 return=12.5 "
+                   "length=40.0 wall_s=100\nEvaluating at global step 600\n"
+                   "EVAL env_steps=19200 return=30.25 length=61.5 wall_s=207\n")  # fmt: skip
     pl.main(pl.Args(report=True, results=str(tmp_path / "pl"), tdmpc2=str(tmp_path / "td"),
-                     random=str(tmp_path / "random.json"), out=str(out)))  # fmt: skip
+                     random=str(tmp_path / "random.json"), out=str(out), zero_action=None,
+                     official_log=str(log)))  # fmt: skip
     assert json.loads((out / "summary.json").read_text()) == s
     assert (out / "figure.png").stat().st_size > 10_000
+    rows = CsvLog(out / "official_fasttd3" / "eval.csv").rows()
+    assert [(float(r["env_steps"]), float(r["return"]), float(r["length"])) for r in rows] == [
+        (9600.0, 12.5, 40.0), (19200.0, 30.25, 61.5)]
 
 
 def test_parallel_learner_config_is_the_fasttd3_cpu_preset_at_beta():

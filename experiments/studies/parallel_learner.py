@@ -12,7 +12,8 @@ per seed. It resumes where it stopped (`experiments.paper.common.run_arm`), writ
 train.csv / eval.csv (with wall_s and process cpu_s) incrementally under `--results`.
 
 `--report` writes `<out>/summary.json` and `<out>/figure.png`: eval return against wall-clock
-hours and against process CPU hours for both arms and for the TD-MPC2 study's seeds
+hours, process CPU hours and env steps for both arms and for the TD-MPC2 study's seeds (and,
+against env steps, the official FastTD3 at the arms' config: `--official-log`)
 (`experiments.studies.sit_simple`, planner eval), with the first time after step 0 that each
 seed reaches 10x the random policy's mean return (the untrained networks' step-0 evaluation
 does not count: see `hours_to`) (`--random`, the sit_simple study's random.json). Run the
@@ -89,19 +90,34 @@ def summarize(results: Path, tdmpc2: Path, random_json: Path) -> dict:
             "tdmpc2_final_steps": [int(c["steps"][-1]) for c in td.values()]}  # fmt: skip
 
 
+def official_rows(log: Path) -> list[dict]:
+    """The evaluations in the official FastTD3's training log: the lines `EVAL env_steps=N
+    return=R length=L wall_s=T` that its evaluation was made to print (the one line added to
+    its `train.py` for this run; it logs to wandb otherwise)."""
+    rows = []
+    for line in log.read_text(errors="replace").replace("\r", "\n").splitlines():
+        if line.startswith("EVAL "):
+            rows.append({k: float(v) for k, v in (kv.split("=") for kv in line.split()[1:])})
+    return rows
+
+
 def figure(results: Path, tdmpc2: Path, bar: float, out: Path,
-           zero_action: float | None = None) -> None:
+           zero_action: float | None = None, official: Path | None = None) -> None:
+    """Each seed's eval return against wall-clock hours, process CPU hours and env steps; the
+    last panel also draws the official FastTD3 run at the arms' config (`official`: its
+    eval.csv), whose hours, on another process layout, are not comparable."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), sharey=True)
     series = [(results / "beta0", "policy_return", "tab:green", "FastTD3 (beta 0)"),
               (results / "beta1", "policy_return", "tab:purple", "FastTD3 + SIRL (beta 1)"),
               (tdmpc2, "planner_return", "tab:blue", "TD-MPC2 study (beta 0, planner)")]
     for ax, clock, xlabel in ((axes[0], "wall_h", "wall-clock hours (arms side by side)"),
-                              (axes[1], "cpu_h", "process CPU hours (training)")):  # fmt: skip
+                              (axes[1], "cpu_h", "process CPU hours (training)"),
+                              (axes[2], "steps", "env steps per seed")):  # fmt: skip
         for d, column, color, label in series:
             for i, c in enumerate(eval_curves(d, column).values()):
                 ax.plot(c[clock], c["return"], color=color, marker=".", lw=1,
@@ -111,7 +127,13 @@ def figure(results: Path, tdmpc2: Path, bar: float, out: Path,
             ax.axhline(zero_action, color="k", ls="--", lw=0.8,
                        label=f"zero action ({zero_action:.0f})")
         ax.set_xlabel(xlabel)
-    axes[0].set_ylabel("eval return (eval mode, 4 episodes)")
+    if official is not None and official.exists():
+        rows = list(CsvLog(official).rows())
+        axes[2].plot([float(r["env_steps"]) for r in rows], [float(r["return"]) for r in rows],
+                     color="tab:orange", marker="x", lw=1,
+                     label="official FastTD3, same config, 1 seed")  # fmt: skip
+        axes[2].legend(fontsize=7, loc="upper left")
+    axes[0].set_ylabel("eval return (eval mode)")
     axes[0].legend(fontsize=7, loc="upper left")
     fig.suptitle(f"{TASK}: each seed's eval return against time, 2-core CPU")
     fig.tight_layout()
@@ -136,6 +158,9 @@ class Args:
     """The random policy's return on the task (`sit_simple --random-episodes 64`)."""
     zero_action: str | None = "docs/results/sit_simple_study/zero_action.json"
     """The zero action's return on the task, drawn as a dashed line (None: not drawn)."""
+    official_log: str | None = None
+    """The official FastTD3's training log: its evaluations go to
+    `<out>/official_fasttd3/eval.csv` (drawn against env steps)."""
     out: str = "docs/results/parallel_learner"
 
 
@@ -151,8 +176,13 @@ def main(args: Args) -> None:
         summary = summarize(root, tdmpc2, Path(args.random))
         out.mkdir(parents=True, exist_ok=True)
         (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+        official = out / "official_fasttd3" / "eval.csv"
+        if args.official_log:
+            official.parent.mkdir(parents=True, exist_ok=True)
+            official.unlink(missing_ok=True)
+            CsvLog(official).extend(official_rows(Path(args.official_log)))
         zero = json.loads(Path(args.zero_action).read_text())["mean"] if args.zero_action else None
-        figure(root, tdmpc2, 10 * summary["random_return"], out / "figure.png", zero)
+        figure(root, tdmpc2, 10 * summary["random_return"], out / "figure.png", zero, official)
         for arm, v in summary["arms"].items():
             print(f"{arm}: final {np.round(v['final'], 1)} at {v['final_steps']} steps, hours to "
                   f"10x {v['hours_to_10x']} (CPU hours {v['cpu_hours_to_10x']})")  # fmt: skip
