@@ -31,6 +31,7 @@ import numpy as np
 import tyro
 
 from experiments.paper.common import run_arm
+from experiments.studies.official_fasttd3 import official_rows
 from sirl_jax.config import Config
 from sirl_jax.presets import get_preset
 from sirl_jax.run.runlog import CsvLog
@@ -90,17 +91,6 @@ def summarize(results: Path, tdmpc2: Path, random_json: Path) -> dict:
             "tdmpc2_final_steps": [int(c["steps"][-1]) for c in td.values()]}  # fmt: skip
 
 
-def official_rows(log: Path) -> list[dict]:
-    """The evaluations in the official FastTD3's training log: the lines `EVAL env_steps=N
-    return=R length=L wall_s=T` that its evaluation was made to print (the one line added to
-    its `train.py` for this run; it logs to wandb otherwise)."""
-    rows = []
-    for line in log.read_text(errors="replace").replace("\r", "\n").splitlines():
-        if line.startswith("EVAL "):
-            rows.append({k: float(v) for k, v in (kv.split("=") for kv in line.split()[1:])})
-    return rows
-
-
 def figure(results: Path, tdmpc2: Path, bar: float, out: Path,
            zero_action: float | None = None, official: Path | None = None) -> None:
     """Each seed's eval return against wall-clock hours, process CPU hours and env steps; the
@@ -128,7 +118,7 @@ def figure(results: Path, tdmpc2: Path, bar: float, out: Path,
                        label=f"zero action ({zero_action:.0f})")
         ax.set_xlabel(xlabel)
     if official is not None and official.exists():
-        rows = list(CsvLog(official).rows())
+        rows = CsvLog(official).rows()
         axes[2].plot([float(r["env_steps"]) for r in rows], [float(r["return"]) for r in rows],
                      color="tab:orange", marker="x", lw=1,
                      label="official FastTD3, same config, 1 seed")  # fmt: skip
@@ -159,8 +149,8 @@ class Args:
     zero_action: str | None = "docs/results/sit_simple_study/zero_action.json"
     """The zero action's return on the task, drawn as a dashed line (None: not drawn)."""
     official_log: str | None = None
-    """The official FastTD3's training log: its evaluations go to
-    `<out>/official_fasttd3/eval.csv` (drawn against env steps)."""
+    """An official FastTD3 console log (`experiments.studies.official_fasttd3`): its
+    evaluations go to `<out>/official_fasttd3/eval.csv` (drawn against env steps)."""
     out: str = "docs/results/parallel_learner"
 
 
