@@ -1,6 +1,7 @@
 """The manipulation scenes' contact sets (`contact_set`, sirl_jax/hb_compat.py), in constructed
 states: with HumanoidBench's set ("hb") a hand pressed into a table stops on it, the torso
-pushed into a cabinet is held and a book dropped on a book rests on it; with the "reduced" set
+pushed into a cabinet is held, so is the shoulder housing pushed into a table, and a book
+dropped on a book rests on it; with the "reduced" set
 each passes through. MuJoCo C on the model MJX compiles; the slow tests run the same states in
 MJX and ask for the same outcome within `MJX_TOL`."""
 
@@ -140,6 +141,10 @@ def _cabinet_wall(m) -> int:
 CASES = {  # name: (task, moving geom, fixture, direction, plate half size)
     "hand on table": ("push", "lh_", "table_top_collision", (0, 0, -1), (0.1, 0.1, 0.02)),
     "torso on cabinet": ("cabinet", "torso", _cabinet_wall, (1, 0, 0), (0.02, 0.08, 0.08)),
+    # the shoulder housing stands 9 cm in front of the torso box: "links" touch fixtures in hb.
+    # The plate spans the housing's length: the push pitches the torso about the contact.
+    "shoulder housing on table": ("push", "shoulders", "table_top_collision", (1, 0, 0),
+                                  (0.02, 0.2, 0.3)),
 }
 
 
@@ -201,18 +206,23 @@ def test_book_rests_on_book_with_hb_contacts_only():
 
 
 def test_hb_bits_on_push():
-    """hb: the table touches the robot's colliders and hands; the box touches the robot and
-    other objects. reduced: the bits earlier versions used."""
-    for contact_set, table, box_type, box_aff in (
-        ("hb", scene.FIXTURE | scene.FLOOR | scene.HANDS, scene.HANDS | scene.OBJECT,
-         scene.FLOOR | scene.FIXTURE | scene.OBJECT | 2),
-        ("reduced", scene.FIXTURE, scene.HANDS, scene.FLOOR | scene.FIXTURE),
+    """hb: the table touches the robot's colliders, link capsules and hands; the box touches
+    the robot, its link capsules and other objects. reduced: the bits earlier versions used,
+    the link capsules touching nothing."""
+    for contact_set, table, box_type, box_aff, links in (
+        ("hb", scene.FIXTURE | scene.FLOOR | scene.HANDS | scene.LINKS,
+         scene.HANDS | scene.OBJECT | scene.LINKS,
+         scene.FLOOR | scene.FIXTURE | scene.OBJECT | 2, scene.LINKS),
+        ("reduced", scene.FIXTURE, scene.HANDS, scene.FLOOR | scene.FIXTURE, 0),
     ):  # fmt: skip
         m = _env("push", contact_set).mj_model
         g = _geom(m, "table_top_collision")
         assert (m.geom_contype[g], m.geom_conaffinity[g]) == (table, 0), contact_set
         g = _geom(m, "object_collision")
         assert (m.geom_contype[g], m.geom_conaffinity[g]) == (box_type, box_aff), contact_set
+        for name in ("shoulders", "left_shoulder_roll", "right_ankle", "left_hip_yaw"):
+            g = _geom(m, name)
+            assert (m.geom_contype[g], m.geom_conaffinity[g]) == (0, links), (contact_set, name)
 
 
 def test_prism_keeps_the_cylinder_area_and_frame():

@@ -21,11 +21,16 @@ within about 1 mm for these link sizes). HumanoidBench's robot is read from a ch
         --hb-robot CHECKOUT/humanoid_bench/assets/robots/h1hand_pos.xml
         [--tolerance 0.01] [--out docs/results/collider_fit.json]
         [--refit] [--capsules K --links left_hip_pitch_link,left_knee_link]
+        [--hull 16,32,48 --links torso_link,pelvis [--out FILE.jsonl]]
 
 `--capsules K` asks how close K capsules per link could come: for each link of `--links`, the
 minimax fit of K capsules at once (max of HumanoidBench outside their union and their
 surfaces outside HumanoidBench's hull), Nelder-Mead from four starts (the capsules side by
 side along the link's second or third principal axis), the best printed.
+
+`--hull K1,K2` fits convex mesh colliders instead: for each link of `--links`, a K-vertex
+inner approximation of HumanoidBench's hull (`greedy_hull`), with how far HumanoidBench's
+surface lies outside it (its own surface never lies outside HumanoidBench's).
 """
 
 from __future__ import annotations
@@ -206,11 +211,24 @@ def main(argv=None) -> None:
     )
     p.add_argument("--refit", action="store_true", help="print refitted capsules, one per line")
     p.add_argument("--capsules", type=int, default=0, help="fit K capsules per --links link")
+    p.add_argument("--hull", default="", help="comma-separated k: fit k-vertex inner hulls "
+                   "to each --links link (greedy_hull) and print how far each is off")
     p.add_argument("--links", default="left_hip_pitch_link,left_knee_link,pelvis,torso_link")
     args = p.parse_args(argv)
     if not args.hb_robot.is_file():
         raise SystemExit(f"error: --hb-robot {str(args.hb_robot)!r} is not a file")
     hb = mujoco.MjModel.from_xml_path(str(args.hb_robot))
+    if args.hull:
+        for body in args.links.split(","):
+            for row in hull_fit(hb, h1.load_model(args.variant), body,
+                                [int(k) for k in args.hull.split(",")]):  # fmt: skip
+                print(f"{body}: {row['vertices']} vertices, {row['triangles']} triangles, "
+                      f"HB out {100 * row['hb_out']:.2f} cm, ours out 0")
+                if args.out:
+                    args.out.parent.mkdir(parents=True, exist_ok=True)
+                    with args.out.open("a") as f:
+                        f.write(json.dumps(row) + "\n")
+        return
     if args.capsules:
         for body in args.links.split(","):
             print(json.dumps(multi_fit(hb, h1.load_model(args.variant), body, args.capsules)))
@@ -313,6 +331,55 @@ def refit(hb: mujoco.MjModel, ours: mujoco.MjModel, seed: int = 0) -> list[dict]
                         "fromto": [round(float(v), 4) for v in np.concatenate(local)],
                         "cost_start": float(before), "cost_fit": float(after)})  # fmt: skip
     return out
+
+
+def greedy_hull(points: np.ndarray, k: int) -> np.ndarray:
+    """[k, 3] vertices of an inner approximation of the convex hull of `points`: start from
+    the points extreme along x, y and z, then add, one at a time, the point farthest outside
+    the hull of those chosen (by its largest plane distance). Its hull lies inside the
+    original, so it never adds volume ("ours out" 0); "HB out" falls as k grows."""
+    hull = points[ConvexHull(points).vertices]
+    if k >= len(hull):
+        return hull
+    chosen = sorted({int(i) for i in np.r_[hull.argmax(0), hull.argmin(0)]})
+    while len(chosen) < k:
+        eq = ConvexHull(hull[chosen]).equations
+        chosen.append(int((hull @ eq[:, :3].T + eq[:, 3]).max(1).argmax()))
+    return hull[chosen]
+
+
+def hull_fit(hb: mujoco.MjModel, ours: mujoco.MjModel, body: str, ks, seed: int = 0):
+    """For each k of `ks`: HumanoidBench's colliders of `body` as a k-vertex inner hull
+    (`greedy_hull`), its triangle count and how far HumanoidBench's surface lies outside it (m),
+    the vertices in our body frame (what a mesh collider of ours would hold)."""
+    rng = np.random.default_rng(seed)
+    qpos = hb.qpos0[: ours.nq].copy()
+    d_hb, d_us = _posed(hb, qpos), _posed(ours, qpos)
+    if body not in (col := _colliders(hb)):
+        raise SystemExit(f"error: HumanoidBench has no collider on {body!r}")
+    b = ours.body(body).id
+    pos, mat = d_us.xpos[b], d_us.xmat[b].reshape(3, 3)
+    hb_geoms = [_Geom(hb, d_hb, g, rng) for g in col[body]]
+    local = (np.concatenate([g.surface() for g in hb_geoms]) - pos) @ mat
+    rows = []
+    for k in ks:
+        verts = greedy_hull(local, k)
+        hull = ConvexHull(verts)
+        tri = verts[hull.simplices]
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        n = 60_000
+        pick = rng.choice(len(tri), n, p=area / area.sum())
+        u, v = rng.uniform(size=(2, n))
+        flip = u + v > 1
+        u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+        t = tri[pick]
+        surf = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
+        outside = (local @ hull.equations[:, :3].T + hull.equations[:, 3]).max(1) > 0
+        hb_out = float(cKDTree(surf).query(local[outside])[0].max()) if outside.any() else 0.0
+        rows.append({"body": body, "vertices": len(verts), "triangles": len(hull.simplices),
+                     "hb_out": hb_out, "ours_out": 0.0,
+                     "local_vertices": np.round(verts, 5).tolist()})  # fmt: skip
+    return rows
 
 
 def multi_fit(hb: mujoco.MjModel, ours: mujoco.MjModel, body: str, k: int, seed: int = 0):

@@ -8,7 +8,8 @@ what its bits name:
 - `GROUP_BITS`: a task that wants a scene geom to touch only some robot parts adds the bit of
   each such group to those parts' conaffinity (`set_contact_bits`) and gives the scene geom the
   bits as contype and conaffinity 0 (`add_static_geom`), so static scene geoms never touch each
-  other. "links" (the fitted capsules of docs/robot.md) touch nothing but such geoms.
+  other. "links" (the fitted capsules of docs/robot.md) touch nothing but such geoms: the
+  obstacles, and in the `hb` contact set the fixtures and objects (`use_link_contacts`).
 - `HANDS`, `OBJECT`, `FIXTURE`, `FLOOR`: the manipulation profile (docs/tasks.md, "Manipulation
   tasks"). Hand colliders touch the task's free objects and nothing else (`use_hand_contacts`:
   contype 0, conaffinity HANDS); a free object has contype HANDS (| OBJECT) and conaffinity
@@ -46,6 +47,9 @@ HANDS = GROUP_BITS["hands"]
 FIXTURE = 1 << 8
 """Static colliders that free objects rest on (tables, shelves); the robot passes through."""
 FLOOR = h1.WORLD_CONTYPE
+LINKS = GROUP_BITS["links"]
+"""The fitted link capsules' bit (hip yaw/roll, shoulder pitch/roll, ankle and shoulder
+housings): on in the `hb` contact set against fixtures and objects, never against the floor."""
 
 BOX = mujoco.mjtGeom.mjGEOM_BOX
 CAPSULE = mujoco.mjtGeom.mjGEOM_CAPSULE
@@ -115,22 +119,32 @@ PRISM_SIDES = 16
 """Sides of the prism that stands in for a colliding cylinder in the `hb` contact set."""
 
 
+def use_link_contacts(spec: mujoco.MjSpec) -> None:
+    """The link capsules (`h1.GEOM_GROUPS["links"]`) touch scene geoms whose contype has
+    LINKS. HumanoidBench's hip, shoulder and ankle housings and its torso's shoulders are
+    colliders like any other: against a table or a counter they are what touches first."""
+    set_contact_bits(spec, {"links": h1.GEOM_GROUPS["links"]}, ("links",))
+
+
 def use_hb_contacts(spec: mujoco.MjSpec) -> None:
     """HumanoidBench's contact set (`contact_set="hb"`, sirl_jax/hb_compat.py): every fixture
     touches the robot's colliders and hands, every free object touches the robot's colliders,
     the hands and the other objects. Call it once the scene is built.
 
-    Fixtures (contype FIXTURE, conaffinity 0) gain FLOOR | HANDS in contype: the robot's
-    colliders have conaffinity FLOOR, the hands HANDS; fixtures still never touch each other or
-    the floor. Objects (conaffinity FIXTURE) gain HANDS | OBJECT in contype and
-    OBJECT | ROBOT_CONTYPE in conaffinity. MJX has no box-cylinder pair, and the robot's soles
-    and palms are boxes, so every colliding cylinder becomes a `PRISM_SIDES`-gon prism of the
-    same area and length (`cylinder_to_prism`)."""
+    Fixtures (contype FIXTURE, conaffinity 0) gain FLOOR | HANDS | LINKS in contype: the
+    robot's colliders have conaffinity FLOOR, the hands HANDS, the link capsules LINKS
+    (`use_link_contacts`); fixtures still never touch each other or the floor. Objects
+    (conaffinity FIXTURE) gain HANDS | OBJECT | LINKS in contype and OBJECT | ROBOT_CONTYPE in
+    conaffinity. Door's panel and walls carry their own bits and leave LINKS out (docs/tasks.md:
+    MJX's cull then drops more touching pairs, and MuJoCo C's agreement gains nothing). MJX has
+    no box-cylinder pair, and the robot's soles and palms are boxes, so every colliding cylinder
+    becomes a `PRISM_SIDES`-gon prism of the same area and length (`cylinder_to_prism`)."""
+    use_link_contacts(spec)
     for geom in spec.geoms:
         if geom.contype & FIXTURE and geom.conaffinity == 0:
-            geom.contype |= FLOOR | HANDS
+            geom.contype |= FLOOR | HANDS | LINKS
         elif geom.conaffinity & FIXTURE:
-            geom.contype |= HANDS | OBJECT
+            geom.contype |= HANDS | OBJECT | LINKS
             geom.conaffinity |= OBJECT | h1.ROBOT_CONTYPE
     for geom in list(spec.geoms):
         if geom.type == CYLINDER and (geom.contype or geom.conaffinity):
