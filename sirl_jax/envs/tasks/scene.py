@@ -9,7 +9,8 @@ what its bits name:
   each such group to those parts' conaffinity (`set_contact_bits`) and gives the scene geom the
   bits as contype and conaffinity 0 (`add_static_geom`), so static scene geoms never touch each
   other. "links" (the fitted capsules of docs/robot.md) touch nothing but such geoms: the
-  obstacles, and in the `hb` contact set the fixtures and objects (`use_link_contacts`).
+  obstacles, stair's and slide's steps, and in the `hb` contact set the fixtures and objects
+  (`use_link_contacts`).
 - `HANDS`, `OBJECT`, `FIXTURE`, `FLOOR`: the manipulation profile (docs/tasks.md, "Manipulation
   tasks"). Hand colliders touch the task's free objects and nothing else (`use_hand_contacts`:
   contype 0, conaffinity HANDS); a free object has contype HANDS (| OBJECT) and conaffinity

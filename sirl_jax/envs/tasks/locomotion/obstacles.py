@@ -27,8 +27,8 @@ from sirl_jax.envs.tasks import scene
 WALL_DISCOUNT = 0.1
 """Reward factor while touching a barrier / maze block / pole."""
 OBSTACLE_GROUPS = ("feet", "legs", "body", "arms", "hands", "links")
-"""The robot groups that collide with the obstacles (all of them; the hands through their
-wrist and palm boxes, `obstacle_colliders`; "links" touch nothing else)."""
+"""The robot groups that collide with the obstacles, and with stair's treads and slide's ramps
+(all of them; the hands through their wrist and palm boxes, `obstacle_colliders`)."""
 CONTACT_RULES = ("query", "contacts")
 
 
