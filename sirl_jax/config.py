@@ -20,7 +20,16 @@ from typing import Any
 
 from sirl_jax.agent.config import AgentConfig, SirlConfig
 from sirl_jax.agent.config import check as _check
-from sirl_jax.hb_compat import EXACT, HB, check_contact_set, check_hb_compat
+from sirl_jax.hb_compat import (
+    EXACT,
+    HAND_FLOOR,
+    HB,
+    TASK_BUDGET,
+    check_contact_budget,
+    check_contact_set,
+    check_hand_floor,
+    check_hb_compat,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,6 +50,15 @@ class TrainConfig:
     """What the manipulation scenes' colliders touch: "hb" (HumanoidBench's set: the robot
     against tables and shelves, objects against each other) or "reduced" (the cheaper cut set
     earlier runs used). docs/tasks.md, "Contact sets"."""
+    hand_floor: str = HAND_FLOOR[0]
+    """Which hand colliders touch the floor: "all" (HumanoidBench: all 62), "palms" (the wrist
+    and palm boxes) or "none" (earlier runs: the hands pass through it). docs/tasks.md, "Hands on
+    the floor"."""
+    contact_budget: int = TASK_BUDGET
+    """MJX-JAX's contact budget: the solver sees only the k most penetrating contacts. -1: the
+    task's own (every locomotion task 64, bookshelf, kitchen, powerlift and room theirs; the
+    other manipulation tasks none; docs/tasks.md, "Contact budget"); 0: none (every contact slot); k >= 1: k. A step that fills
+    the budget is counted in `env/physics_overflow`."""
     seed: int = 0
     """PRNG seed of the run."""
     steps: int = 2_000_000
@@ -85,6 +103,8 @@ class TrainConfig:
         _check(self.impl in ("jax", "warp"), "train.impl", self.impl, "'jax' or 'warp'")
         check_hb_compat(self.hb_compat, "train.hb_compat")
         check_contact_set(self.contact_set, "train.contact_set")
+        check_hand_floor(self.hand_floor, "train.hand_floor")
+        check_contact_budget(self.contact_budget, "train.contact_budget")
         _check(self.seed >= 0, "train.seed", self.seed, "an int >= 0")
         _check(self.steps >= 1, "train.steps", self.steps, "an int >= 1")
         _check(self.num_envs >= 1, "train.num_envs", self.num_envs, "an int >= 1")
@@ -117,6 +137,16 @@ class TrainConfig:
             self.max_blowup_rate,
             "a float in [0, 1]",
         )
+
+    @property
+    def env_options(self) -> dict[str, Any]:
+        """The options that shape the task's env (`sirl_jax.envs.load`'s keywords)."""
+        return {
+            "hb_compat": self.hb_compat,
+            "contact_set": self.contact_set,
+            "hand_floor": self.hand_floor,
+            "contact_budget": self.contact_budget,
+        }
 
     @property
     def steps_per_call(self) -> int:

@@ -39,15 +39,18 @@ def _pairs(model, data):
 
 @pytest.mark.timeout(120)
 def test_profile_keeps_only_hand_object_and_world_pairs():
-    """The "reduced" contact set (the "hb" bits: tests/test_contact_sets.py)."""
-    env = make("push", contact_set="reduced")
+    """The "reduced" contact set (the "hb" bits: tests/test_contact_sets.py), hands off the
+    floor (`hand_floor` "none"; with the default "all" they touch the floor too)."""
+    env = make("push", contact_set="reduced", hand_floor="none")
     m = env.mj_model
     hands = set(env.robot.geom_groups["hands"])
     box = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "object_collision")
+    floor_bit = make("push", contact_set="reduced").mj_model.geom_conaffinity
     for g in range(m.ngeom):
         name = m.geom(g).name
         if name in hands:  # hands touch the box only: not the floor, table or the robot
             assert m.geom_contype[g] == 0 and m.geom_conaffinity[g] == scene.HANDS, name
+            assert floor_bit[g] == scene.HANDS | scene.FLOOR, name
     for g in range(m.ngeom):
         if m.geom(g).name.startswith("table"):
             assert m.geom_contype[g] == scene.FIXTURE and m.geom_conaffinity[g] == 0

@@ -11,6 +11,7 @@ so a change of machine load during the run moves both.
 
     .venv/bin/python -m experiments.bench.bench_tasks [--variant h1hand] [--num-envs 64]
         [--calls 10] [--rounds 3] [--tasks walk,pole] [--profile] [--max-geom-pairs K]
+        [--contact-sets hb,reduced] [--hand-floors all,none]
 
 `--tasks` takes locomotion and manipulation names (a manipulation task runs on its own variant:
 h1hand, or h1strong for highbar_hard).
@@ -19,7 +20,10 @@ in front of it, with the hands off (locomotion profile; the box touches the floo
 62 hand colliders on against the box, and with them on but `max_geom_pairs` 8.
 
 `--max-geom-pairs K` adds, after each task, the same task with MJX keeping K candidate pairs per
-collision function (the lever for a scene with many box colliders).
+collision function (the lever for a scene with many box colliders). `--max-contact-points K` adds
+the same task with MJX's contact budget set to K (-1: none), for a task that sets one
+(docs/tasks.md, "Contact budget"). `--contact-sets` and `--hand-floors` measure each task in each
+contact set it reads and each `hand_floor` (the bare robot's hands never touch the floor).
 
 Compiles are not cached (a cached compile would time a disk read).
 """
@@ -28,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import itertools
 import statistics
 import time
 from collections.abc import Callable
@@ -41,7 +46,13 @@ from sirl_jax.envs.base import EnvState, VecEnv
 from sirl_jax.envs.humanoid import HumanoidEnv, Task, contact_arrays
 from sirl_jax.envs.physics import Physics
 from sirl_jax.envs.tasks import scene
-from sirl_jax.hb_compat import CONTACT_SETS, HB
+from sirl_jax.hb_compat import (
+    CONTACT_SET_LOCOMOTION,
+    CONTACT_SETS,
+    HAND_FLOOR,
+    HB,
+    NO_HAND_FLOOR,
+)
 
 try:  # the contact slots MJX allocates per env (its collision driver's own count)
     from mujoco.mjx._src.collision_driver import make_condim as mjx_contact_dims
@@ -52,9 +63,11 @@ except ImportError:  # pragma: no cover - private MJX module moved
 
 
 class BareTask(Task):
-    """No scene, zero reward, never terminates: the physics-only reference."""
+    """No scene, zero reward, never terminates: the physics-only reference. Its hands pass
+    through the floor (`hand_floor="none"`), as the reference of every earlier ratio did."""
 
     name = "bare"
+    hand_floor = NO_HAND_FLOOR
 
     def evaluate(self, robot, data, task_state):
         return jnp.zeros(()), jnp.zeros((), bool), task_state, {}
@@ -129,12 +142,12 @@ class Stepper:
         return self.num_envs * len(self.actions) / (time.perf_counter() - t0)
 
 
-def with_max_geom_pairs(env: HumanoidEnv, k: int) -> HumanoidEnv:
-    """A copy of `env` whose MJX model keeps k candidate pairs per collision function (the
-    compiled model's `max_geom_pairs` numeric, edited before `mjx.put_model`)."""
-    i = mujoco.mj_name2id(env.mj_model, mujoco.mjtObj.mjOBJ_NUMERIC, "max_geom_pairs")
+def with_numeric(env: HumanoidEnv, name: str, k: int) -> HumanoidEnv:
+    """A copy of `env` whose compiled model's numeric `name` (`max_geom_pairs`,
+    `max_contact_points`) is k, edited before `mjx.put_model`."""
+    i = mujoco.mj_name2id(env.mj_model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
     if i < 0:
-        raise SystemExit(f"{env.task.name} sets no max_geom_pairs")
+        raise SystemExit(f"{env.task.name} sets no {name}")
     model = copy.deepcopy(env.mj_model)
     model.numeric_data[model.numeric_adr[i]] = k
     out = copy.copy(env)
@@ -162,13 +175,23 @@ def main() -> None:
     parser.add_argument("--profile", action="store_true", help="measure the contact profiles")
     parser.add_argument("--max-geom-pairs", type=int, default=0,
                         help="also measure each task with this max_geom_pairs (a lever test)")
+    parser.add_argument("--max-contact-points", type=int, default=0,
+                        help="also measure each task that has a contact budget with this one "
+                        "(-1: none)")  # fmt: skip
     parser.add_argument("--contact-sets", default=HB,
-                        help=f"comma-separated contact sets for the manipulation tasks, each "
+                        help=f"comma-separated contact sets for the tasks that read one (the "
+                        f"manipulation tasks, {', '.join(CONTACT_SET_LOCOMOTION)}), each "
                         f"measured (allowed: {', '.join(CONTACT_SETS)})")  # fmt: skip
+    parser.add_argument("--hand-floors", default=HAND_FLOOR[0],
+                        help=f"comma-separated hand_floor values, each measured (allowed: "
+                        f"{', '.join(HAND_FLOOR)})")  # fmt: skip
     args = parser.parse_args()
     contact_sets = [c for c in args.contact_sets.split(",") if c]
     if not contact_sets or set(contact_sets) - set(CONTACT_SETS):
         raise SystemExit(f"--contact-sets {args.contact_sets!r}: allowed {CONTACT_SETS}")
+    hand_floors = [c for c in args.hand_floors.split(",") if c]
+    if not hand_floors or set(hand_floors) - set(HAND_FLOOR):
+        raise SystemExit(f"--hand-floors {args.hand_floors!r}: allowed {HAND_FLOOR}")
     if args.calls < 1 or args.rounds < 1:
         raise SystemExit(f"--calls and --rounds must be >= 1, got {args.calls}, {args.rounds}")
     rows = {r.name: r for r in (*tasks.LOCOMOTION, *tasks.MANIPULATION)}
@@ -179,7 +202,7 @@ def main() -> None:
         raise SystemExit(f"unknown tasks {unknown}; allowed: {names}")
     print(f"variant {args.variant}, E = {args.num_envs}, {args.rounds} x {args.calls} timed "
           f"calls, backend {jax.default_backend()}")
-    header = (f"{'task':<16}{'contacts':>9}{'reset compile s':>16}{'step compile s':>16}"
+    header = (f"{'task':<26}{'contacts':>9}{'reset compile s':>16}{'step compile s':>16}"
               f"{'compile CPU s':>14}{'steps/s':>9}{'ratio':>7}{'ncon':>6}")
     print(header)
     print("-" * len(header))
@@ -187,7 +210,7 @@ def main() -> None:
     def report(name: str, stepper: Stepper, rate: float, ratio: float) -> None:
         contacts = len(mjx_contact_dims(stepper.env.mj_model))
         compile_s = stepper.compile
-        print(f"{name:<16}{contacts:>9}{compile_s['reset_compile_s']:>16.1f}"
+        print(f"{name:<26}{contacts:>9}{compile_s['reset_compile_s']:>16.1f}"
               f"{compile_s['step_compile_s']:>16.1f}{compile_s['compile_cpu_s']:>14.1f}"
               f"{rate:>9.0f}{ratio:>7.2f}{stepper.ncon():>6.1f}", flush=True)
 
@@ -203,18 +226,25 @@ def main() -> None:
         row = rows[name]
         manipulation = row in tasks.MANIPULATION
         variant = row.robot if manipulation else args.variant
-        for contact_set in contact_sets if manipulation else [HB]:
-            task = row.task().with_contact_set(contact_set)
+        reads_set = manipulation or name in CONTACT_SET_LOCOMOTION
+        for contact_set, hand_floor in itertools.product(
+            contact_sets if reads_set else [HB], hand_floors
+        ):
+            task = row.task().with_contact_set(contact_set).with_hand_floor(hand_floor)
             env = HumanoidEnv(task, variant, success_bar=row.success_bar)
             stepper = Stepper(env, args.num_envs, args.calls)
-            label = f"{name} {contact_set}" if manipulation and len(contact_sets) > 1 else name
+            label = name + (f" {contact_set}" if reads_set and len(contact_sets) > 1 else "")
+            label += f" hands:{hand_floor}" if len(hand_floors) > 1 else ""
             report(label, stepper, *side_by_side(stepper, bare, args.rounds))
             del stepper
-        if args.max_geom_pairs:  # on the env of the last contact set measured
-            stepper = Stepper(with_max_geom_pairs(env, args.max_geom_pairs), args.num_envs,
-                              args.calls)  # fmt: skip
-            report(f"{name} k{args.max_geom_pairs}", stepper,
-                   *side_by_side(stepper, bare, args.rounds))  # fmt: skip
+        levers = [("max_geom_pairs", args.max_geom_pairs, "k")]
+        if env.sim.contact_budget:
+            levers.append(("max_contact_points", args.max_contact_points, "budget "))
+        for numeric, k, tag in levers:  # on the env of the last contact set measured
+            if not k:
+                continue
+            stepper = Stepper(with_numeric(env, numeric, k), args.num_envs, args.calls)
+            report(f"{name} {tag}{k}", stepper, *side_by_side(stepper, bare, args.rounds))
             del stepper
 
 

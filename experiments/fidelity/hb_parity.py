@@ -72,7 +72,7 @@ from mujoco import mjx
 from experiments.fidelity.hb_side import joint_key, model_tables
 from sirl_jax.envs import load
 from sirl_jax.envs.loading import spec as task_spec
-from sirl_jax.hb_compat import CONTACT_SETS, HB
+from sirl_jax.hb_compat import CONTACT_SETS, HAND_FLOOR, HB
 from sirl_jax.run.compile_cache import enable_compilation_cache
 
 HB_SIDE = Path(__file__).with_name("hb_side.py")
@@ -301,7 +301,7 @@ def _stats(delta: np.ndarray) -> dict:
 
 def check(name: str, args, workdir: Path) -> dict:
     t0 = time.perf_counter()
-    spec, env = load(name, contact_set=args.contact_set)
+    spec, env = load(name, contact_set=args.contact_set, hand_floor=args.hand_floor)
     short = name.removeprefix("h1hand-").removesuffix("-v0")
     notes = []
     kind = "fixture" if env.task.contacts == "manipulation" else "obstacle"
@@ -410,6 +410,7 @@ def check(name: str, args, workdir: Path) -> dict:
         "episodes": episodes,
         "hb_compat": "exact",
         "contact_set": args.contact_set,
+        "hand_floor": args.hand_floor,
         "contacts_ours": "MuJoCo C mj_forward on our model (MJX contacts: contact_parity)",
         "contacts": contacts,
         "reward": {
@@ -486,6 +487,12 @@ def main(argv=None) -> None:
         choices=CONTACT_SETS,
         default=HB,
         help="our manipulation scenes' contact set (sirl_jax/hb_compat.py)",
+    )
+    p.add_argument(
+        "--hand-floor",
+        choices=HAND_FLOOR,
+        default=HAND_FLOOR[0],
+        help="which of our hand colliders touch the floor (sirl_jax/hb_compat.py)",
     )
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--keep", type=Path, default=None, help="folder for the exchanged .npz files")

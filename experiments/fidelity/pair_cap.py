@@ -1,4 +1,5 @@
-"""Which touching geom pairs MJX's `max_geom_pairs` cull drops, task by task.
+"""Which touching geom pairs MJX's `max_geom_pairs` cull drops, and how many active contacts its
+`max_contact_points` budget must hold, task by task.
 
 MJX groups the candidate geom pairs by collision function (geom types, mesh ids, condim) and,
 in a group with more candidates than the model's `max_geom_pairs` numeric, runs the collision
@@ -21,23 +22,37 @@ culled group's candidates as MJX does on the same `geom_xpos`, and reports per g
 - `dropped_states_at`: `dropped_states` under each cap of `--caps` (what raising the task's
   `max_geom_pairs` would buy).
 
+And, under `active`, the contacts the solver must see: MJX's own collision (`mjx.kinematics`,
+`mjx.collision`, the task's `max_geom_pairs`, no contact budget) on the same states, counting
+the active contacts (dist < 0) of each state:
+
+- `mean`, `p99`, `max` per state, and the reset pose's count (`reset`);
+- `full_states_at`: the share of states whose active contacts fill each budget of
+  `--budgets` (with `max_contact_points` k, MJX's solver sees the k most penetrating contacts,
+  so a state with k or more active ones may lose one); `budget`: the task's own.
+
     .venv/bin/python -m experiments.fidelity.pair_cap --tasks bookshelf_simple,room \
         --states 300 --out docs/results/pair_cap.json
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 from pathlib import Path
 
+import jax
+import jax.numpy as jnp
 import mujoco
 import numpy as np
 import tyro
+from mujoco import mjx
 from mujoco.mjx._src import collision_driver
 
 from experiments.fidelity.hb_parity import draw_states
 from sirl_jax.envs import load
+from sirl_jax.envs.physics import contact_arrays, contact_budget
 from sirl_jax.envs.tasks import MANIPULATION
 
 _TYPE = {int(v): k.removeprefix("mjGEOM_").lower() for k, v in mujoco.mjtGeom.__members__.items()}
@@ -68,7 +83,48 @@ def ranks(m: mujoco.MjModel, d: mujoco.MjData, pairs: np.ndarray) -> np.ndarray:
     return rank
 
 
-def check(task: str, n_states: int, seed: int, contact_set: str, caps: tuple[int, ...]) -> dict:
+def active_contacts(m: mujoco.MjModel, qpos: np.ndarray, chunk: int = 100) -> np.ndarray:
+    """[n] active contacts (dist < 0) of MJX's collision at each of `qpos` [n, nq], with the
+    model's `max_geom_pairs` cull and without its contact budget."""
+    m = copy.copy(m)
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, "max_contact_points")
+    if i >= 0:
+        m.numeric_data[m.numeric_adr[i]] = -1.0
+    mx = mjx.put_model(m, impl="jax")
+    d0 = mjx.make_data(mx)
+
+    @jax.jit
+    def count(qp):
+        def one(q):
+            d = mjx.collision(mx, mjx.kinematics(mx, d0.replace(qpos=q)))
+            return jnp.sum(contact_arrays(d)[0] < 0)
+
+        return jax.vmap(one)(qp)
+
+    n = len(qpos)
+    pad = np.concatenate([qpos, np.repeat(qpos[-1:], -n % chunk, 0)])
+    out = [np.asarray(count(jnp.asarray(c, jnp.float32))) for c in np.split(pad, len(pad) // chunk)]
+    return np.concatenate(out)[:n]
+
+
+def budget_row(env, qpos: np.ndarray, budgets: tuple[int, ...]) -> dict:
+    """The `active` entry of `check`: active contacts at the drawn states and at a reset."""
+    m = env.mj_model
+    active = active_contacts(m, qpos)
+    start = np.asarray(env.reset(jax.random.PRNGKey(0)).physics.qpos)
+    reset = int(active_contacts(m, start[None])[0])
+    return {
+        "budget": contact_budget(m),
+        "reset": reset,
+        "mean": float(active.mean()),
+        "p99": int(np.percentile(active, 99, method="higher")),
+        "max": int(active.max()),
+        "full_states_at": {str(k): float((active >= k).mean()) for k in budgets},
+    }
+
+
+def check(task: str, n_states: int, seed: int, contact_set: str, caps: tuple[int, ...],
+          budgets: tuple[int, ...] = ()) -> dict:  # fmt: skip
     spec, env = load(task, contact_set=contact_set)
     m = env.mj_model
     cap = collision_driver._numeric(m, "max_geom_pairs")
@@ -105,8 +161,11 @@ def check(task: str, n_states: int, seed: int, contact_set: str, caps: tuple[int
             "cap_needed_p99": int(np.percentile(worst[g] + 1, 99, method="higher")),
             "dropped_states_at": {str(k): float((worst[g] >= k).mean()) for k in caps},
         }
-    return {"task": spec.id, "contact_set": contact_set, "cap": cap, "states": n_states,
-            "episodes": episodes, "groups": rows}  # fmt: skip
+    out = {"task": spec.id, "contact_set": contact_set, "cap": cap, "states": n_states,
+           "episodes": episodes, "groups": rows}  # fmt: skip
+    if budgets:
+        out["active"] = budget_row(env, qpos, budgets)
+    return out
 
 
 @dataclasses.dataclass
@@ -118,6 +177,8 @@ class Args:
     contact_set: str = "hb"
     caps: str = "8,12,16,24,32,48,64"
     """Caps to report `dropped_states_at` for."""
+    budgets: str = "32,48,64,96,128"
+    """Contact budgets to report `active.full_states_at` for (empty: skip the MJX count)."""
     out: str = ""
     """JSON file to write (merged by task id with what it already holds)."""
 
@@ -126,7 +187,8 @@ def main(args: Args) -> None:
     results = json.loads(Path(args.out).read_text()) if args.out and Path(args.out).exists() else {}
     for task in args.tasks.split(","):
         caps = tuple(int(k) for k in args.caps.split(","))
-        row = check(task, args.states, args.seed, args.contact_set, caps)
+        budgets = tuple(int(k) for k in args.budgets.split(",") if k)
+        row = check(task, args.states, args.seed, args.contact_set, caps, budgets)
         results[row["task"]] = row
         print(f"{row['task']} (cap {row['cap']}, {row['states']} states)")
         for g, r in row["groups"].items():
@@ -139,6 +201,12 @@ def main(args: Args) -> None:
                 "    dropped in % of states at cap "
                 + "  ".join(f"{k}: {100 * v:.1f}" for k, v in r["dropped_states_at"].items())
             )
+        if "active" in row:
+            a = row["active"]
+            print(f"  active contacts (MJX, no budget; the task's budget {a['budget'] or 'none'}):"
+                  f" reset {a['reset']}, mean {a['mean']:.1f}, p99 {a['p99']}, max {a['max']}")
+            print("    states filling the budget, % at "
+                  + "  ".join(f"{k}: {100 * v:.1f}" for k, v in a["full_states_at"].items()))
         if args.out:
             Path(args.out).write_text(json.dumps(results, indent=1) + "\n")
 

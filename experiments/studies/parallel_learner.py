@@ -32,6 +32,7 @@ import tyro
 
 from experiments.paper.common import run_arm
 from experiments.studies.official_fasttd3 import official_rows
+from experiments.studies.sit_simple import STUDY_ENV  # the env its committed runs used
 from sirl_jax.config import Config
 from sirl_jax.presets import get_preset
 from sirl_jax.run.runlog import CsvLog
@@ -46,7 +47,8 @@ def config(beta: float, steps: int, num_envs: int = 32) -> Config:
     cfg = get_preset("fasttd3-cpu")
     sirl = dataclasses.replace(cfg.agent.sirl, beta=beta)
     train = dataclasses.replace(cfg.train, task=TASK, steps=steps, num_envs=num_envs,
-                                buffer_size=steps, eval_every=10_000, eval_episodes=4)
+                                buffer_size=steps, eval_every=10_000, eval_episodes=4,
+                                **STUDY_ENV)
     return dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, sirl=sirl),
                                train=train)  # fmt: skip
 

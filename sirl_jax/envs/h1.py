@@ -21,6 +21,7 @@ contype=conaffinity=3.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from pathlib import Path
 
@@ -30,6 +31,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from sirl_jax.envs import physics as _physics
 from sirl_jax.envs.physics import Simulator
 
 ASSET_DIR = Path(__file__).resolve().parents[2] / "assets" / "h1_shadow"
@@ -124,6 +126,13 @@ the capsules of the hip yaw/roll and shoulder pitch/roll links, the ankle housin
 shoulder housings of the torso (docs/robot.md, collider fit): no contact profile turns them on
 (each would add floor contacts to every task); obstacle tasks collide them with their
 obstacles, and every contact rule that tests robot geoms (`overlap.PairQuery`) includes them."""
+HAND_FLOOR_GEOMS: dict[str, tuple[str, ...]] = {
+    "all": GEOM_GROUPS["hands"],
+    "palms": tuple(n for n in GEOM_GROUPS["hands"] if "_wrist" in n or "_palm" in n),
+    "none": (),
+}
+"""The hand colliders that touch the floor, by `hand_floor` value (sirl_jax/hb_compat.py):
+HumanoidBench's every one, the wrist and palm boxes (16 of 62), or none."""
 _H1_FISTS = ("left_fist", "right_fist")
 
 # groups that collide with the world in each contact profile
@@ -164,6 +173,31 @@ def robot_spec(variant: str = "h1hand", contacts: str = "locomotion") -> mujoco.
                 actuator.gainprm[0], actuator.biasprm[1] = STRONG_HAND_KP, -STRONG_HAND_KP
                 actuator.forcerange = (-STRONG_HAND_FORCE, STRONG_HAND_FORCE)
     return spec
+
+
+def set_hand_floor(spec: mujoco.MjSpec, which: str) -> None:
+    """The hand colliders of `HAND_FLOOR_GEOMS[which]` touch the floor (and the few scene geoms
+    that carry the floor's contype: walls, the truck, the high bar) besides whatever a contact
+    profile already gives them. A spec without hands (the h1 variant) is left as it is."""
+    _check("hand_floor", which, HAND_FLOOR_GEOMS)
+    for name in HAND_FLOOR_GEOMS[which]:
+        geom = spec.geom(name)
+        if geom is None:
+            return  # the h1 variant: no hands
+        geom.conaffinity = int(geom.conaffinity) | ROBOT_CONAFFINITY
+
+
+def set_max_contact_points(spec: mujoco.MjSpec, k: int) -> None:
+    """MJX contact budget: after the collision functions, keep only the k most penetrating
+    contacts (all of one condim; every scene here is condim 3), so the constraint solver works on
+    k contact slots instead of every slot the kept pairs can fill. Active contacts (dist < 0)
+    rank first, so nothing that pushes is dropped while fewer than k touch; when k are active at
+    once the env reports it (`physics.OVERFLOW_METRIC`). MJX-JAX only (Warp sizes its own pool).
+    `HumanoidEnv` applies a task's `max_contact_points` with it, after the scene and the hand
+    floor."""
+    if k < 1:
+        raise ValueError(f"max_contact_points must be >= 1, got {k}")
+    spec.add_numeric(name="max_contact_points", data=[float(k)])
 
 
 def load_model(variant: str = "h1hand", contacts: str = "locomotion") -> mujoco.MjModel:
@@ -283,6 +317,27 @@ def make_control_step(
         d = d.replace(ctrl=ctrl)
         d, _ = jax.lax.scan(lambda d, _: (mjx.step(mx, d), None), d, None, length=n_substeps)
         return d
+
+    return step
+
+
+def make_budget_control_step(
+    budget: int, n_substeps: int = N_SUBSTEPS
+) -> Callable[[mjx.Model, mjx.Data, jax.Array], tuple[mjx.Data, jax.Array]]:
+    """`make_control_step` for a model with an MJX contact budget (`max_contact_points`):
+    `step(mx, d, ctrl) -> (d, full)`, full [] float32 1 when the budget was full (every kept
+    contact active, `physics.budget_full`) after any of the substeps' collisions."""
+
+    def substep(mx: mjx.Model, carry, _):
+        d, full = carry
+        d = mjx.step(mx, d)
+        return (d, full | _physics.budget_full(d, budget)), None
+
+    def step(mx: mjx.Model, d: mjx.Data, ctrl: jax.Array) -> tuple[mjx.Data, jax.Array]:
+        carry = (d.replace(ctrl=ctrl), jnp.zeros((), bool))
+        (d, full), _ = jax.lax.scan(functools.partial(substep, mx), carry, None,
+                                    length=n_substeps)  # fmt: skip
+        return d, full.astype(jnp.float32)
 
     return step
 

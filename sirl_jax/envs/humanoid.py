@@ -37,11 +37,26 @@ from sirl_jax.envs import h1
 from sirl_jax.envs import physics as _physics
 from sirl_jax.envs.base import Env, EnvState, init_state
 from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, Simulator
-from sirl_jax.hb_compat import EXACT, HB, check_contact_set, check_hb_compat
+from sirl_jax.hb_compat import (
+    EXACT,
+    HAND_FLOOR,
+    HB,
+    check_contact_budget,
+    check_contact_set,
+    check_hand_floor,
+    check_hb_compat,
+)
 
 FRAME_SKIP = h1.N_SUBSTEPS
 """Physics substeps per control step (dt 0.002 s -> 50 Hz control), as in HumanoidBench."""
 RESET_NOISE = 0.01
+LOCOMOTION_BUDGET = 64
+"""The locomotion tasks' MJX contact budget. With all 62 hand colliders on the floor (the
+`hand_floor` default) walk has 181 contact slots and steps at 0.54 of the bare hands-off
+robot's rate; with the solver seeing the 64 most penetrating contacts, 0.79. Random-action
+states of 11 locomotion tasks hold at most 43 active contacts (balance_hard; the others 11-31;
+`pair_cap`, docs/tasks.md, "Hands on the floor"); a step that fills the budget is reported
+(`physics_overflow`)."""
 
 
 class Task(abc.ABC):
@@ -76,13 +91,39 @@ class Task(abc.ABC):
 
     contact_set: str = HB
     """What the scene's colliders touch: "hb" (HumanoidBench's set) or "reduced" (`hb_compat.py`);
-    set it with `with_contact_set`. Only manipulation scenes read it."""
+    set it with `with_contact_set`. The manipulation scenes read it, and the locomotion scenes
+    whose geoms touched only some robot parts before (`hb_compat.CONTACT_SET_LOCOMOTION`)."""
 
     def with_contact_set(self, contact_set: str) -> Task:
         """A copy of this task that builds its scene with `contact_set` ("hb" or "reduced";
         anything else raises ValueError naming the value and the allowed ones)."""
         task = copy.copy(self)
         task.contact_set = check_contact_set(contact_set)
+        return task
+
+    hand_floor: str = HAND_FLOOR[0]
+    """Which hand colliders touch the floor: "all" (HumanoidBench), "palms" or "none"
+    (`h1.HAND_FLOOR_GEOMS`); set it with `with_hand_floor`. The env applies it after `build`."""
+
+    def with_hand_floor(self, which: str) -> Task:
+        """A copy of this task whose hands touch the floor as `which` says ("all", "palms" or
+        "none"; anything else raises ValueError naming the value and the allowed ones)."""
+        task = copy.copy(self)
+        task.hand_floor = check_hand_floor(which)
+        return task
+
+    max_contact_points: int = 0
+    """MJX's contact budget (`h1.set_max_contact_points`; 0: none), applied by the env after
+    the scene; set it with `with_contact_budget`. The locomotion tasks set `LOCOMOTION_BUDGET`,
+    four manipulation scenes their own (docs/tasks.md, "Contact budget")."""
+
+    def with_contact_budget(self, budget: int) -> Task:
+        """A copy of this task with MJX contact budget `budget`: -1 keeps the task's own, 0 none,
+        k >= 1 k (anything else raises ValueError naming the value)."""
+        check_contact_budget(budget)
+        task = copy.copy(self)
+        if budget >= 0:
+            task.max_contact_points = budget
         return task
 
     def with_hb_compat(self, mode: str) -> Task:
@@ -206,11 +247,14 @@ class HumanoidEnv(Env):
         self._success_bar = success_bar
         spec = h1.robot_spec(variant=variant, contacts=task.contacts)
         task.build(spec, variant)
+        h1.set_hand_floor(spec, task.hand_floor)
+        if task.max_contact_points:
+            h1.set_max_contact_points(spec, task.max_contact_points)
         self.mj_model = spec.compile()
         self.robot = h1.Robot(self.mj_model)
         task.bind(self.mj_model, self.robot)
         self._set_physics(physics or Physics())
-        self._control_step = h1.make_control_step(FRAME_SKIP)
+        self._plain_step = h1.make_control_step(FRAME_SKIP)
         self._qpos0 = jnp.asarray(self.mj_model.key_qpos[0], jnp.float32)
         if task.full_state_obs:
             nq, nv = self.mj_model.nq, self.mj_model.nv
@@ -221,8 +265,10 @@ class HumanoidEnv(Env):
     def _set_physics(self, physics: Physics) -> None:
         self.sim = Simulator(self.mj_model, physics)
         self.mx = self.sim.mx
-        extra = (OVERFLOW_METRIC,) if self.sim.impl == "warp" else ()
-        self._metric_names = tuple(self.task.metric_names) + extra
+        budget = self.sim.contact_budget
+        self._budget_step = h1.make_budget_control_step(budget, FRAME_SKIP) if budget else None
+        reports = self.sim.impl == "warp" or budget > 0
+        self._metric_names = tuple(self.task.metric_names) + ((OVERFLOW_METRIC,) if reports else ())
 
     @property
     def physics_impl(self) -> str:
@@ -289,12 +335,16 @@ class HumanoidEnv(Env):
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         """One control step: 10 physics substeps, then reward/termination of the returned data."""
         data = self.sim.attach_pool(state.physics)
-        data = self._control_step(self.mx, data, self.robot.action_to_ctrl(action))
-        data, overflow = self.sim.pop_overflow(data)
+        ctrl = self.robot.action_to_ctrl(action)
+        if self._budget_step is None:
+            data = self._plain_step(self.mx, data, ctrl)
+            data, overflow = self.sim.pop_overflow(data)
+        else:  # MJX-JAX with a contact budget: was it full at a substep?
+            data, overflow = self._budget_step(self.mx, data, ctrl)
         reward, terminated, task_state, metrics = self.task.evaluate(self.robot, data, state.task)
         obs = self._observe(data, task_state)
         metrics = {k: jnp.asarray(v, jnp.float32) for k, v in metrics.items()}
-        if self.sim.impl == "warp":
+        if OVERFLOW_METRIC in self._metric_names:
             metrics[OVERFLOW_METRIC] = overflow
         return state.replace(
             physics=self.sim.detach_pool(data),

@@ -18,7 +18,16 @@ from sirl_jax.envs.base import Env
 from sirl_jax.envs.physics import Physics, check_impl
 from sirl_jax.envs.playground_adapter import PREFIXES, register_playground_task
 from sirl_jax.envs.registry import TASKS, TaskSpec
-from sirl_jax.hb_compat import EXACT, HB, check_contact_set, check_hb_compat
+from sirl_jax.hb_compat import (
+    EXACT,
+    HAND_FLOOR,
+    HB,
+    TASK_BUDGET,
+    check_contact_budget,
+    check_contact_set,
+    check_hand_floor,
+    check_hb_compat,
+)
 
 __all__ = ["PREFIXES", "load", "spec", "with_physics"]
 
@@ -59,6 +68,8 @@ def load(
     physics: Physics | None = None,
     hb_compat: str = EXACT,
     contact_set: str = HB,
+    hand_floor: str = HAND_FLOOR[0],
+    contact_budget: int = TASK_BUDGET,
     **kwargs,
 ) -> tuple[TaskSpec, Env]:
     """(spec, env) of a task; `kwargs` go to the task's factory (e.g. `episode_length`).
@@ -68,15 +79,23 @@ def load(
       (`sirl_jax/hb_compat.py`); checked for every task, used by HumanoidBench's tasks.
     contact_set: "hb" (HumanoidBench's contacts) or "reduced" (the cheaper cut set of the
       manipulation scenes); checked for every task, used by the manipulation tasks.
+    hand_floor: which hand colliders touch the floor, "all" (HumanoidBench's), "palms" or
+      "none"; used by the HumanoidBench tasks on a robot with hands.
+    contact_budget: MJX-JAX's contact budget (`max_contact_points`): -1 the task's own, 0
+      none, k >= 1 k; used by HumanoidBench's tasks.
     """
     check_hb_compat(hb_compat)
     check_contact_set(contact_set)
+    check_hand_floor(hand_floor)
+    check_contact_budget(contact_budget)
     if physics is not None:
         check_impl(physics.impl)
     registered = spec(name)
     if registered.takes_hb_compat:
         kwargs["hb_compat"] = hb_compat
         kwargs["contact_set"] = contact_set
+        kwargs["hand_floor"] = hand_floor
+        kwargs["contact_budget"] = contact_budget
     env = registered.factory(**kwargs)
     if physics is not None:
         env = with_physics(env, physics)

@@ -15,6 +15,11 @@ MJX-Warp differs from MJX-JAX in two ways that the env contract sees:
   An env keeps its state without the pool (`detach_pool`: empty placeholders) and puts the
   pool back before stepping (`attach_pool`); collision recomputes it every step anyway.
 
+MJX-JAX can be given a contact budget (the model's `max_contact_points` numeric: the solver
+sees only the most penetrating contacts). When every contact of the budget is active at a
+substep, an active one may have been left out; `Simulator.contact_budget` names the budget and
+the env reports such steps under the same metric as Warp's overflows.
+
 Warp has no autodiff; nothing here differentiates the physics. On the CPU, Warp runs through
 its CPU device (slower than MJX-JAX there, docs/training.md).
 """
@@ -59,7 +64,9 @@ _CONTACT_ROWS = tuple(
                      mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC)
 )  # fmt: skip
 OVERFLOW_METRIC = "physics_overflow"
-"""Per-step metric of a Warp env: 1 when a buffer of its world overflowed during the step."""
+"""Per-step metric: 1 when a Warp buffer of the env's world overflowed during the step, or, with
+MJX-JAX and a contact budget, when the budget was full at one of its substeps (an active contact
+may have been left out)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,14 +138,15 @@ def contact_profile(mj_model: mujoco.MjModel) -> tuple[int, int]:
     """(contacts, constraint rows) one world of `mj_model` can reach at most.
 
     The slots MJX-JAX allocates: a contact slot for each contact every candidate geom pair can
-    make (contype/conaffinity and `<pair>`s, without the `max_geom_pairs` pruning of the JAX
-    path, which Warp does not apply) and a constraint row for each contact row, joint and
-    tendon limit, friction loss and equality.
+    make (contype/conaffinity and `<pair>`s, without the `max_geom_pairs` pruning and the
+    `max_contact_points` budget of the JAX path, which Warp does not apply) and a constraint
+    row for each contact row, joint and tendon limit, friction loss and equality.
     """
     model = copy.copy(mj_model)
-    pairs = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, "max_geom_pairs")
-    if pairs >= 0:
-        model.numeric_data[model.numeric_adr[pairs]] = -1.0
+    for name in ("max_geom_pairs", "max_contact_points"):
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+        if i >= 0:
+            model.numeric_data[model.numeric_adr[i]] = -1.0
     data = mjx.make_data(model, impl="jax")
     return int(data._impl.contact.dist.shape[0]), int(data._impl.efc_J.shape[0])
 
@@ -181,6 +189,7 @@ class Simulator:
       physics: the choice.
       mx: the `mjx.Model` (impl as chosen).
       buffers: Warp's buffer sizes (None for impl="jax").
+      contact_budget: MJX-JAX's `max_contact_points` (0: none; always 0 for Warp).
     """
 
     def __init__(self, mj_model: mujoco.MjModel, physics: Physics | None = None):
@@ -189,7 +198,9 @@ class Simulator:
         if self.physics.impl == "jax":
             self.mx = mjx.put_model(mj_model, impl="jax")
             self.buffers, self._pool, self._data0 = None, None, None
+            self.contact_budget = contact_budget(mj_model)
             return
+        self.contact_budget = 0
         check_impl("warp")
         self.buffers = warp_buffers(mj_model, self.physics)
         mx = mjx.put_model(mj_model, impl="warp")
@@ -236,6 +247,21 @@ class Simulator:
         return data.replace(_impl=cleared), hit.astype(jnp.float32)
 
 
+def contact_budget(mj_model: mujoco.MjModel) -> int:
+    """The model's `max_contact_points` numeric (MJX-JAX's contact budget), 0 when unset."""
+    i = mujoco.mj_name2id(mj_model, mujoco.mjtObj.mjOBJ_NUMERIC, "max_contact_points")
+    if i < 0:
+        return 0
+    return max(0, int(mj_model.numeric_data[mj_model.numeric_adr[i]]))
+
+
+def budget_full(data: mjx.Data, budget: int) -> jax.Array:
+    """[] bool: MJX-JAX kept `budget` contacts and every one of them is active (dist < 0), so an
+    active contact may have been left out of the solver."""
+    dist, _ = contact_arrays(data)
+    return jnp.sum(dist < 0) >= budget
+
+
 def contact_arrays(data: mjx.Data) -> tuple[jax.Array, jax.Array]:
     """(dist [C], geom [C, 2]) of one world's contacts; a slot without a contact has dist > 0.
 
@@ -276,6 +302,6 @@ def raise_on_overflow(count: Any, where: str, buffers: WarpBuffers | None = None
 
 __all__ = [
     "BUFFER_OVERFLOW", "IMPLS", "OVERFLOW_METRIC", "Physics", "Simulator", "WarpBuffers",
-    "check_impl", "contact_arrays", "contact_profile", "overflow_names", "raise_on_overflow",
-    "warp_buffers", "warp_unavailable",
+    "budget_full", "check_impl", "contact_arrays", "contact_budget", "contact_profile",
+    "overflow_names", "raise_on_overflow", "warp_buffers", "warp_unavailable",
 ]  # fmt: skip

@@ -25,6 +25,7 @@ import logging
 import os
 import re
 import shutil
+import time
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
@@ -207,9 +208,18 @@ class Checkpointer:
             f"could not write checkpoint {self.step_dir(step)}{what}: {why}; {kept}"
         )
 
-    def _remove_tmp(self, step: int) -> None:
-        for path in self.directory.glob(f"{step}{_TMP}*"):
-            shutil.rmtree(path, ignore_errors=True)
+    def _remove_tmp(self, step: int, patience_s: float = 5.0) -> None:
+        """Deletes the failed save's temporary directories. Orbax's writer threads can still
+        be closing files in them after the save raised (seen on a loaded machine: a directory
+        left behind), so it deletes again until none is left or `patience_s` has passed."""
+        deadline = time.monotonic() + patience_s
+        while True:
+            paths = list(self.directory.glob(f"{step}{_TMP}*"))
+            for path in paths:
+                shutil.rmtree(path, ignore_errors=True)
+            if not any(p.exists() for p in paths) or time.monotonic() > deadline:
+                return
+            time.sleep(0.1)
 
     def partial_writes(self) -> list[Path]:
         """Temporary directories of saves that never finished (a killed writer's)."""

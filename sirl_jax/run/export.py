@@ -137,8 +137,7 @@ def export_run(run_dir: Path, step: int | None, out: Path | None, force: bool) -
         out = run_dir / f"export-{step}" if out is None else out
         if out.exists() and not force:
             raise UsageError(f"output directory {out} exists; pass --force to write over it")
-        spec, env = load_task(config.train.task, hb_compat=config.train.hb_compat,
-                              contact_set=config.train.contact_set)  # fmt: skip
+        spec, env = load_task(config.train.task, **config.train.env_options)
         C.env_parts(env, spec.id)  # refuses an env without a contract before any work
         _check_obs(ckpt, step, env, spec.id, config.agent.kind)
         train = make_train(config, env)

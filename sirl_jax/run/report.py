@@ -106,7 +106,8 @@ def eval_rows(run_dir: Path) -> tuple[list[dict], str]:
 
 def run_counters(metrics: list[dict], evals: list[dict]) -> dict[str, float]:
     """Totals over the run: env blow-ups (training), eval episodes cut by a blow-up, logged
-    periods with a Warp buffer overflow (and the largest per-step rate), non-finite counts."""
+    periods with a physics overflow (a Warp buffer, or MJX-JAX's contact budget, full; and the
+    largest per-step rate), non-finite counts."""
     def total(key, rows):
         return float(sum(v for r in rows if math.isfinite(v := _number(r.get(key)))))
 
@@ -118,7 +119,7 @@ def run_counters(metrics: list[dict], evals: list[dict]) -> dict[str, float]:
     overflow = [_number(r.get("env/physics_overflow")) for r in metrics
                 if "env/physics_overflow" in r]  # fmt: skip
     if overflow:
-        out["logged periods with a physics buffer overflow (Warp)"] = float(
+        out["logged periods with a physics overflow (Warp buffer or contact budget)"] = float(
             sum(1 for v in overflow if v > 0))  # fmt: skip
         out["largest overflow rate (fraction of steps)"] = max(overflow)
     for key in sorted({k for r in metrics for k in r if k.startswith("nonfinite")}):

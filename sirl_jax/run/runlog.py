@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from sirl_jax.config import Config, config_from_dict
-from sirl_jax.hb_compat import REDUCED
+from sirl_jax.hb_compat import CONTACT_SET_LOCOMOTION, NO_HAND_FLOOR, REDUCED
 
 _PACKAGES = (
     "jax", "jaxlib", "mujoco", "mujoco-mjx", "flax", "optax", "orbax-checkpoint", "chex",
@@ -51,7 +51,10 @@ class RunDirError(ValueError):
 
 def load_config(run_dir: Path) -> Config:
     """The config saved in `run_dir/config.json`; RunDirError if absent or invalid. A config
-    saved before `train.contact_set` existed reads as "reduced", the set it was trained with."""
+    saved before `train.contact_set` existed reads as "reduced", the set it was trained with, one
+    saved before `train.hand_floor` existed as "none" (and, on a task of
+    `CONTACT_SET_LOCOMOTION`, with the "reduced" set) and one saved before
+    `train.contact_budget` existed as 0 (no budget), so it resumes as it ran."""
     path = run_dir / "config.json"
     if not path.is_file():
         raise RunDirError(f"{run_dir} is not a run directory (no config.json)")
@@ -59,9 +62,20 @@ def load_config(run_dir: Path) -> Config:
         raw = json.loads(path.read_text())
         if isinstance(raw.get("train"), dict):
             raw["train"].setdefault("contact_set", REDUCED)
+            if "hand_floor" not in raw["train"]:  # saved before the hands touched the floor
+                raw["train"]["hand_floor"] = NO_HAND_FLOOR
+                if _short(raw["train"].get("task", "")) in CONTACT_SET_LOCOMOTION:
+                    raw["train"]["contact_set"] = REDUCED  # what "hb" was in these scenes
+            raw["train"].setdefault("contact_budget", 0)
         return config_from_dict(Config, raw, str(path))
     except (TypeError, ValueError) as e:
         raise RunDirError(f"{path} is invalid: {e}") from e
+
+
+def _short(task: str) -> str:
+    """A task id's short name: "h1hand-sit_simple-v0" -> "sit_simple" (aliases pass)."""
+    parts = task.split("-")
+    return parts[1] if len(parts) == 3 and parts[2].startswith("v") else task
 
 
 def default_run_dir(task: str, seed: int, root: str = "runs") -> Path:

@@ -20,7 +20,6 @@ import jax
 from sirl_jax.config import Config, config_to_dict
 from sirl_jax.envs import load
 from sirl_jax.envs import spec as registered_spec
-from sirl_jax.hb_compat import EXACT, HB
 from sirl_jax.run import progress as prog
 from sirl_jax.run import runlog
 from sirl_jax.run.checkpoint import Checkpointer, CheckpointWriteError
@@ -36,14 +35,14 @@ _EVAL_STREAM = 0x6576616C  # folded into the seed so evaluation keys never meet 
 # ---------------------------------------------------------------- building blocks
 
 
-def load_task(task: str, build_env: bool = True, hb_compat: str = EXACT, contact_set: str = HB):
+def load_task(task: str, build_env: bool = True, **options):
     """(TaskSpec, Env) of a task name, with bad names and missing extras as UsageError;
-    `build_env=False`: the registered spec alone, (spec, None), nothing compiled. `hb_compat`:
-    HumanoidBench's quirks, "exact" or "fixed"; `contact_set`: "hb" or "reduced"
-    (`sirl_jax/hb_compat.py`)."""
+    `build_env=False`: the registered spec alone, (spec, None), nothing compiled. `options`:
+    `sirl_jax.envs.load`'s (`TrainConfig.env_options`: hb_compat, contact_set, hand_floor,
+    contact_budget; sirl_jax/hb_compat.py)."""
     try:
         if build_env:
-            return load(task, hb_compat=hb_compat, contact_set=contact_set)
+            return load(task, **options)
         return (registered_spec(task), None)
     except KeyError as e:
         raise UsageError(e.args[0]) from e
@@ -59,7 +58,7 @@ def build(config: Config) -> tuple[Any, Train]:
     from sirl_jax.envs.physics import Physics
 
     t = config.train
-    spec, env = load_task(t.task, hb_compat=t.hb_compat, contact_set=t.contact_set)
+    spec, env = load_task(t.task, **t.env_options)
     try:
         env = with_physics(env, Physics(t.impl, num_worlds=max(t.num_envs, t.eval_episodes)))
     except (ImportError, RuntimeError, ValueError) as e:

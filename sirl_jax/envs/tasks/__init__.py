@@ -35,7 +35,7 @@ from sirl_jax.envs.tasks.manipulation.room import RoomTask
 from sirl_jax.envs.tasks.manipulation.spoon import SpoonTask
 from sirl_jax.envs.tasks.manipulation.truck import TruckTask
 from sirl_jax.envs.tasks.manipulation.window import WindowTask
-from sirl_jax.hb_compat import EXACT, HB
+from sirl_jax.hb_compat import EXACT, HAND_FLOOR, HB, TASK_BUDGET
 
 VARIANTS = ("h1hand", "h1")
 
@@ -121,8 +121,10 @@ lengths and success bars of spec §1."""
 
 def _factory(row: TaskRow, variant: str) -> Callable[..., HumanoidEnv]:
     def make_env(episode_length: int = row.episode_length, hb_compat: str = EXACT,
-                 contact_set: str = HB) -> HumanoidEnv:  # fmt: skip
+                 contact_set: str = HB, hand_floor: str = HAND_FLOOR[0],
+                 contact_budget: int = TASK_BUDGET) -> HumanoidEnv:  # fmt: skip
         task = row.task().with_hb_compat(hb_compat).with_contact_set(contact_set)
+        task = task.with_hand_floor(hand_floor).with_contact_budget(contact_budget)
         return HumanoidEnv(task, variant, episode_length=episode_length,
                            success_bar=row.success_bar)  # fmt: skip
 

@@ -11,9 +11,11 @@ import numpy as np
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, contact_arrays, fallen, geom_mask
+from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, Task, contact_arrays, fallen, geom_mask
 from sirl_jax.envs.overlap import PairQuery, below_floor
 from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.locomotion.obstacles import whole_robot_bits
+from sirl_jax.hb_compat import HB
 
 BALANCE_ROOT = (-0.1, 0.0, 1.38)
 BOARD_Z, BOARD_HALF = 0.37, (0.15, 0.55, 0.03)
@@ -50,6 +52,8 @@ class BalanceTask(Task):
         touch the floor.
     """
 
+    max_contact_points = LOCOMOTION_BUDGET
+
     metric_names = ("standing", "upright", "small_control", "dont_move")
 
     def __init__(self, name: str, contact_rule: str = "query"):
@@ -64,14 +68,16 @@ class BalanceTask(Task):
         self.contact_rule = contact_rule
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        groups = scene.robot_groups(variant)
-        # The board carries the feet; the sphere under it can only be reached by the feet and
-        # legs before the root drops below 0.8 m (itself a termination).
-        standing_on = scene.set_contact_bits(spec, groups, ("feet",))
-        everything = scene.set_contact_bits(spec, groups, ("feet", "legs"))
+        if self.contact_set == HB:  # HumanoidBench: board and sphere touch the whole robot
+            standing_on = everything = whole_robot_bits(spec, variant)
+        else:  # the reduced set: the board carries the feet; only the feet and legs reach the
+            # sphere before the root drops below 0.8 m (itself a termination)
+            groups = scene.robot_groups(variant)
+            standing_on = scene.set_contact_bits(spec, groups, ("feet",))
+            everything = scene.set_contact_bits(spec, groups, ("feet", "legs"))
         board = spec.worldbody.add_body(name="stand_board", pos=(0, 0, BOARD_Z))
         board.add_freejoint(name="free_stand_board")
-        # Board: robot feet/legs, the floor (contype 1) and the pivot (scene.OBJECT).
+        # Board: the robot, the floor (contype 1) and the pivot (scene.OBJECT).
         board.add_geom(
             name="stand_board_collision",
             type=mujoco.mjtGeom.mjGEOM_BOX,

@@ -12,8 +12,10 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task
+from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, Task
 from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.locomotion.obstacles import whole_robot_bits
+from sirl_jax.hb_compat import HB
 
 
 def walk_reward(
@@ -108,6 +110,8 @@ def reach_reward(
 class WalkTask(Task):
     """Stand / walk / run on flat ground; terminates when the pelvis z < 0.2."""
 
+    max_contact_points = LOCOMOTION_BUDGET
+
     def __init__(self, name: str, speed: float):
         self.name = name
         self.speed = float(speed)
@@ -128,6 +132,8 @@ class WalkTask(Task):
 class CrawlTask(Task):
     """Crawl through a 16 m tunnel (ceiling underside z 1.15, walls at y +-1.15); no termination."""
 
+    max_contact_points = LOCOMOTION_BUDGET
+
     name = "crawl"
     metric_names = (
         "small_control", "move", "crawling", "crawling_head", "pelvis_quat", "in_tunnel",
@@ -135,8 +141,11 @@ class CrawlTask(Task):
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         # Tunnel body at x 2.2 in HumanoidBench; its three boxes, in world coordinates.
-        # The feet stay on the floor between the walls; every other robot part can touch them.
-        bits = scene.set_contact_bits(spec, scene.robot_groups(variant), ("legs", "body", "arms"))
+        if self.contact_set == HB:  # HumanoidBench: the tunnel touches the whole robot
+            bits = whole_robot_bits(spec, variant)
+        else:  # the reduced set: feet and hands pass through the walls and ceiling
+            bits = scene.set_contact_bits(spec, scene.robot_groups(variant),
+                                          ("legs", "body", "arms"))  # fmt: skip
         for pos, size in (
             ((10.2, -1.35, 0.775), (8.0, 0.2, 0.775)),
             ((10.2, 1.35, 0.775), (8.0, 0.2, 0.775)),
@@ -161,6 +170,8 @@ class CrawlTask(Task):
 
 class ReachTask(Task):
     """Reach a random goal with the left hand; the goal is the task state; no termination."""
+
+    max_contact_points = LOCOMOTION_BUDGET
 
     reset_edits = True
     name = "reach"

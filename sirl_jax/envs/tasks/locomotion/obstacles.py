@@ -19,8 +19,9 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from sirl_jax.envs import h1
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, contact_arrays, fallen, geom_mask
+from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, Task, contact_arrays, fallen, geom_mask
 from sirl_jax.envs.overlap import PairQuery
 from sirl_jax.envs.tasks import scene
 
@@ -34,15 +35,23 @@ CONTACT_RULES = ("query", "contacts")
 
 def obstacle_colliders(variant: str) -> dict[str, tuple[str, ...]]:
     """The robot colliders that collide with obstacles, by group: every body, arm and leg
-    collider, and of each hand only the wrist and palm boxes (7 of 31). MJX's broad phase
+    collider, and of each hand only the wrist and palm colliders (8 of 31,
+    `h1.HAND_FLOOR_GEOMS["palms"]`). MJX's broad phase
     scores every candidate pair on every substep: with all 62 hand geoms and 1-2 m wall
     segments hurdle had 13,663 pairs and ran at 0.35 of the bare robot's rate; palms only and
     2.5-5 m segments give 2,159. The penalty still tests every finger (`PairQuery` over all
     robot geoms); only the physics lets a finger pass into an obstacle."""
     groups = dict(scene.robot_groups(variant))
     if "hands" in groups:
-        groups["hands"] = tuple(n for n in groups["hands"] if "_wrist" in n or "_palm" in n)
+        groups["hands"] = h1.HAND_FLOOR_GEOMS["palms"]
     return groups
+
+
+def whole_robot_bits(spec: mujoco.MjSpec, variant: str) -> int:
+    """The contype of a scene geom that touches every collider the obstacle tasks use
+    (`OBSTACLE_GROUPS` over `obstacle_colliders`): HumanoidBench's scene geoms touch the whole
+    robot. Sets the groups' bits on the robot's colliders."""
+    return scene.set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
 
 
 def _obstacle_box(spec: mujoco.MjSpec, contype: int, name: str, pos, half, segment: float,
@@ -166,6 +175,8 @@ class _ContactTask(Task):
         contact slots).
     """
 
+    max_contact_points = LOCOMOTION_BUDGET
+
     _penalised_names: tuple[str, ...] = ()
 
     def __init__(self, contact_rule: str = "query"):
@@ -196,7 +207,7 @@ class HurdleTask(_ContactTask):
     metric_names = ("standing", "upright", "small_control", "move", "wall_collision_discount")
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        bits = scene.set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
+        bits = whole_robot_bits(spec, variant)
         for k in range(1, 11):
             _obstacle_box(spec, bits, f"hurdle_{k}", (7.0 * k, 0, 0.1875), (0.03, 5, 0.1875), 2.5,
                           rgba=(0.9, 0.9, 0.9, 1))  # fmt: skip
@@ -253,7 +264,7 @@ class MazeTask(_ContactTask):
     )  # fmt: skip
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        bits = scene.set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
+        bits = whole_robot_bits(spec, variant)
         names = []
         for r, c, x, y in maze_block_centres():
             names.append(f"block_collision_{r}{c}")
@@ -304,7 +315,7 @@ class PoleTask(_ContactTask):
     metric_names = ("stand_reward", "small_control", "move", "collision_discount")
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        bits = scene.set_contact_bits(spec, obstacle_colliders(variant), OBSTACLE_GROUPS)
+        bits = whole_robot_bits(spec, variant)
         names = []
         for k, (x, y) in enumerate(pole_positions()):
             names.append(f"pole_r{int(x)}_c{k}")

@@ -8,8 +8,10 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task, fallen
+from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, Task, fallen
 from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.tasks.locomotion.obstacles import whole_robot_bits
+from sirl_jax.hb_compat import HB
 
 CHAIR_POS = (-0.25, 0.0, 0.0)
 # HumanoidBench's chair: massless collision boxes; the mass (15.7 kg) comes from the visual
@@ -87,6 +89,8 @@ class SitTask(Task):
     is placed at x ~ U(0.2, 0.4), y ~ U(-0.15, 0.15), yaw ~ U(-1.8, 1.8) at reset.
     """
 
+    max_contact_points = LOCOMOTION_BUDGET
+
     metric_names = (
         "small_control", "sit_reward", "dont_move", "sitting", "on_chair", "upright",
         "sitting_posture",
@@ -100,8 +104,11 @@ class SitTask(Task):
         self.reset_edits = self.free  # sit_hard draws the root pose
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
-        # The feet stay on the floor in front of the seat; legs, body and arms touch the chair.
-        bits = scene.set_contact_bits(spec, scene.robot_groups(variant), ("legs", "body", "arms"))
+        if self.contact_set == HB:  # HumanoidBench: the chair touches the whole robot
+            bits = whole_robot_bits(spec, variant)
+        else:  # the reduced set: the feet pass through the seat; legs, body and arms touch it
+            bits = scene.set_contact_bits(spec, scene.robot_groups(variant),
+                                          ("legs", "body", "arms"))  # fmt: skip
         scene.set_max_geom_pairs(spec, 4)
         chair = spec.worldbody.add_body(name="chair", pos=CHAIR_POS)
         if self.free:

@@ -15,7 +15,7 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import Task
+from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, Task
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.locomotion.obstacles import OBSTACLE_GROUPS, obstacle_colliders
 
@@ -81,6 +81,8 @@ def slide_boxes(x0: float, half_thickness: float = 0.25) -> list[tuple[tuple, tu
 
 class ClimbTask(Task):
     """Stair or slide; terminates when the torso zz < 0.1."""
+
+    max_contact_points = LOCOMOTION_BUDGET
 
     metric_names = ("standing", "upright", "small_control", "move")
 

@@ -91,7 +91,9 @@ class ManipulationTask(Task):
     task's `build_scene`, then HumanoidBench's contact set unless `contact_set` is "reduced"
     (`scene.use_hb_contacts`), then keyframe 0 = `robot_qpos` followed by `object_qpos`
     (HumanoidBench's task `qpos0`), then `max_geom_pairs` (MJX keeps that many candidate pairs
-    per collision function; the scene's fixtures are many static geoms).
+    per collision function; the scene's fixtures are many static geoms). Where a task sets
+    `max_contact_points` (MJX's contact budget: the solver sees that many contacts, the most
+    penetrating; docs/tasks.md, "Contact budget") the env applies it.
     """
 
     contacts = "manipulation"

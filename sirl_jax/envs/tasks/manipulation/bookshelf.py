@@ -114,6 +114,7 @@ class BookshelfTask(ManipulationTask):
     object_qpos = tuple(v for name in OBJECTS for v in (
         *_POSES[name], *(() if len(_POSES[name]) == 7 else (1.0, 0.0, 0.0, 0.0))))  # fmt: skip
     max_geom_pairs = 32
+    max_contact_points = 128  # docs/tasks.md, "Contact budget"
 
     def __init__(self, name: str):
         if name not in ("bookshelf_simple", "bookshelf_hard"):

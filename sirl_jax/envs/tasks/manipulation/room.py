@@ -85,6 +85,7 @@ class RoomTask(ManipulationTask):
     reset_edits = True
     object_qpos = tuple(v for n in OBJECTS for v in (0.0, 0.0, _POSES[n][0], *_POSES[n][1]))
     max_geom_pairs = 8
+    max_contact_points = 96  # docs/tasks.md, "Contact budget"
     name = "room"
     metric_names = ("stand_reward", "small_control", "standing", "upright",
                     "room_object_organized")  # fmt: skip
