@@ -57,8 +57,8 @@ class TrainConfig:
     contact_budget: int = TASK_BUDGET
     """MJX-JAX's contact budget: the solver sees only the k most penetrating contacts. -1: the
     task's own (every locomotion task 64, bookshelf, kitchen, powerlift and room theirs; the
-    other manipulation tasks none; docs/tasks.md, "Contact budget"); 0: none (every contact slot); k >= 1: k. A step that fills
-    the budget is counted in `env/physics_overflow`."""
+    other manipulation tasks none; docs/tasks.md, "Contact budget"); 0: none (every contact
+    slot); k >= 1: k. A step that fills the budget is counted in `env/physics_overflow`."""
     seed: int = 0
     """PRNG seed of the run."""
     steps: int = 2_000_000

@@ -1,4 +1,4 @@
-"""MJX's contact budget (`max_contact_points`, `scene.set_max_contact_points`): it changes
+"""MJX's contact budget (`max_contact_points`, `h1.set_max_contact_points`): it changes
 nothing while fewer contacts than the budget are active, and a full budget is reported."""
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import h1, load, physics
 from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET
 from sirl_jax.envs.physics import OVERFLOW_METRIC, contact_budget, contact_profile
-from sirl_jax.envs.tasks import scene
 from sirl_jax.run import runlog
 
 BOXES = 3
@@ -35,7 +34,7 @@ def _boxes(budget: int) -> mujoco.MjModel:
         body.add_freejoint()
         body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=(0.1, 0.15, 0.1))
     if budget:
-        scene.set_max_contact_points(spec, budget)
+        h1.set_max_contact_points(spec, budget)
     return spec.compile()
 
 
@@ -72,7 +71,7 @@ def test_budget_is_read_reported_and_left_out_of_warps_sizes():
     assert contact_budget(_boxes(0)) == 0 and contact_budget(_boxes(8)) == 8
     assert contact_profile(_boxes(8)) == contact_profile(_boxes(0))
     with pytest.raises(ValueError, match="max_contact_points must be >= 1, got 0"):
-        scene.set_max_contact_points(mujoco.MjSpec(), 0)
+        h1.set_max_contact_points(mujoco.MjSpec(), 0)
     _, env = load("bookshelf_simple")
     assert env.sim.contact_budget == env.task.max_contact_points > 0
     assert OVERFLOW_METRIC in env.metric_names()

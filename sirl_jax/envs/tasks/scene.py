@@ -98,10 +98,6 @@ def set_max_geom_pairs(spec: mujoco.MjSpec, k: int) -> None:
     spec.add_numeric(name="max_geom_pairs", data=[float(k)])
 
 
-set_max_contact_points = h1.set_max_contact_points
-"""MJX's contact budget (`h1.set_max_contact_points`; the env applies a task's own)."""
-
-
 def add_static_geom(
     spec: mujoco.MjSpec,
     contype: int,
