@@ -11,7 +11,7 @@ so a change of machine load during the run moves both.
 
     .venv/bin/python -m experiments.bench.bench_tasks [--variant h1hand] [--num-envs 64]
         [--calls 10] [--rounds 3] [--tasks walk,pole] [--profile] [--max-geom-pairs K]
-        [--contact-sets hb,reduced] [--hand-floors all,none]
+        [--contact-sets hb,reduced] [--hand-floors all,none] [--out rows.json]
 
 `--tasks` takes locomotion and manipulation names (a manipulation task runs on its own variant:
 h1hand, or h1strong for highbar_hard).
@@ -25,6 +25,9 @@ the same task with MJX's contact budget set to K (-1: none), for a task that set
 (docs/tasks.md, "Contact budget"). `--contact-sets` and `--hand-floors` measure each task in each
 contact set it reads and each `hand_floor` (the bare robot's hands never touch the floor).
 
+`--out` also writes every row, as it is measured, to a JSON file (the run's settings and one
+object per row; `experiments.fidelity.task_table` reads it).
+
 Compiles are not cached (a cached compile would time a disk read).
 """
 
@@ -33,9 +36,11 @@ from __future__ import annotations
 import argparse
 import copy
 import itertools
+import json
 import statistics
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -185,6 +190,7 @@ def main() -> None:
     parser.add_argument("--hand-floors", default=HAND_FLOOR[0],
                         help=f"comma-separated hand_floor values, each measured (allowed: "
                         f"{', '.join(HAND_FLOOR)})")  # fmt: skip
+    parser.add_argument("--out", type=Path, help="also write the rows to this JSON file")
     args = parser.parse_args()
     contact_sets = [c for c in args.contact_sets.split(",") if c]
     if not contact_sets or set(contact_sets) - set(CONTACT_SETS):
@@ -206,13 +212,22 @@ def main() -> None:
               f"{'compile CPU s':>14}{'steps/s':>9}{'ratio':>7}{'ncon':>6}")
     print(header)
     print("-" * len(header))
+    record = {"variant": args.variant, "num_envs": args.num_envs, "calls": args.calls,
+              "rounds": args.rounds, "backend": jax.default_backend(), "rows": []}  # fmt: skip
 
-    def report(name: str, stepper: Stepper, rate: float, ratio: float) -> None:
+    def report(name: str, stepper: Stepper, rate: float, ratio: float, **settings) -> None:
         contacts = len(mjx_contact_dims(stepper.env.mj_model))
-        compile_s = stepper.compile
+        compile_s, ncon = stepper.compile, stepper.ncon()
         print(f"{name:<26}{contacts:>9}{compile_s['reset_compile_s']:>16.1f}"
               f"{compile_s['step_compile_s']:>16.1f}{compile_s['compile_cpu_s']:>14.1f}"
-              f"{rate:>9.0f}{ratio:>7.2f}{stepper.ncon():>6.1f}", flush=True)
+              f"{rate:>9.0f}{ratio:>7.2f}{ncon:>6.1f}", flush=True)
+        if args.out:
+            record["rows"].append({"label": name, **settings, "contacts": contacts, **compile_s,
+                                   "steps_per_s": rate, "ratio": ratio, "ncon": ncon})  # fmt: skip
+            args.out.parent.mkdir(parents=True, exist_ok=True)
+            tmp = args.out.with_suffix(".tmp")
+            tmp.write_text(json.dumps(record, indent=1) + "\n")
+            tmp.replace(args.out)
 
     bare = Stepper(HumanoidEnv(BareTask(), args.variant), args.num_envs, args.calls)
     rate = statistics.median(bare.rate() for _ in range(args.rounds))
@@ -235,7 +250,9 @@ def main() -> None:
             stepper = Stepper(env, args.num_envs, args.calls)
             label = name + (f" {contact_set}" if reads_set and len(contact_sets) > 1 else "")
             label += f" hands:{hand_floor}" if len(hand_floors) > 1 else ""
-            report(label, stepper, *side_by_side(stepper, bare, args.rounds))
+            report(label, stepper, *side_by_side(stepper, bare, args.rounds), task=name,
+                   contact_set=task.contact_set, hand_floor=hand_floor,
+                   contact_budget=env.sim.contact_budget)  # fmt: skip
             del stepper
         levers = [("max_geom_pairs", args.max_geom_pairs, "k")]
         if env.sim.contact_budget:
@@ -244,7 +261,8 @@ def main() -> None:
             if not k:
                 continue
             stepper = Stepper(with_numeric(env, numeric, k), args.num_envs, args.calls)
-            report(f"{name} {tag}{k}", stepper, *side_by_side(stepper, bare, args.rounds))
+            report(f"{name} {tag}{k}", stepper, *side_by_side(stepper, bare, args.rounds),
+                   task=name, **{numeric: k})  # fmt: skip
             del stepper
 
 
