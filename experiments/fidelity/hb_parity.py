@@ -55,6 +55,7 @@ from __future__ import annotations
 import argparse
 import collections
 import dataclasses
+import itertools
 import json
 import subprocess
 import tempfile
@@ -278,8 +279,9 @@ def our_rewards(env, qpos, qvel, ctrl, task, chunk: int = 250):
 
 
 def our_contacts(m: mujoco.MjModel, qpos, qvel, ctrl):
+    """(state, geom1, geom2, dist) of every contact of every state, MuJoCo C on our model."""
     d = mujoco.MjData(m)
-    state, g1, g2 = [], [], []
+    state, g1, g2, dist = [], [], [], []
     for i in range(len(qpos)):
         d.qpos[:], d.qvel[:], d.ctrl[:] = qpos[i], qvel[i], ctrl[i]
         mujoco.mj_forward(m, d)
@@ -287,7 +289,84 @@ def our_contacts(m: mujoco.MjModel, qpos, qvel, ctrl):
             state.append(i)
             g1.append(int(c.geom1))
             g2.append(int(c.geom2))
-    return state, g1, g2
+            dist.append(float(c.dist))
+    return state, g1, g2, dist
+
+
+# -- why a state disagrees: how deep, how far -------------------------------------------------
+GAP_MAX = 0.25
+"""Our gap is measured up to this many metres (`mj_geomDistance`'s distmax)."""
+
+
+def deepest(t, state, g1, g2, dist, n) -> dict[str, np.ndarray]:
+    """{class: [n] deepest penetration (m, >= 0; nan where the class has no contact)}."""
+    role, _ = roles(t)
+    out = {c: np.full(n, np.nan) for c in CLASSES}
+    for i, a, b, x in zip(state, g1, g2, dist, strict=True):
+        c = contact_class(role[a], role[b])
+        if c is not None:
+            out[c][i] = np.fmax(out[c][i], -x)
+    return out
+
+
+class OurGap:
+    """Where HumanoidBench's model touches and ours does not: how far apart our colliders are.
+
+    HumanoidBench's contact (geom A, geom B) maps to our geoms by body: a robot or hand geom to
+    our geoms on the body of the same name, an object geom to our object of the same body name,
+    the floor to our floor, a fixture or obstacle geom to our geom of the same name, else to
+    every fixture or obstacle geom of ours. Of those pairs, only the ones our contact bits let
+    collide count (contype / conaffinity; parent-child and welded pairs are already apart in
+    the robot-versus-world classes measured here). Gap = the smallest `mj_geomDistance` among
+    them; None where no pair may collide (our contact set leaves the pair out)."""
+
+    def __init__(self, m: mujoco.MjModel, hb_tables: dict[str, np.ndarray]):
+        self.m, self.d = m, mujoco.MjData(m)
+        ours = tables(m)
+        self.role, _ = roles(ours)
+        self.hb_role, _ = roles(hb_tables)
+        body = [str(ours["body_name"][b]) for b in ours["geom_body"]]
+        self.by_body = collections.defaultdict(list)
+        self.by_name = {str(n): g for g, n in enumerate(ours["geom_name"]) if str(n)}
+        self.by_role = collections.defaultdict(list)
+        for g in range(m.ngeom):
+            if m.geom_contype[g] or m.geom_conaffinity[g]:
+                self.by_body[body[g]].append(g)
+                self.by_role[self.role[g]].append(g)
+        self.hb_body = [str(hb_tables["body_name"][b]) for b in hb_tables["geom_body"]]
+        self.hb_name = [str(x) for x in hb_tables["geom_name"]]
+
+    def _ours(self, g: int) -> list[int]:
+        role = self.hb_role[g]
+        if role in ("robot", "hand", "object"):
+            mine = self.by_body.get(self.hb_body[g], [])
+            return mine if mine or role != "object" else self.by_role["object"]
+        mine = self.by_name.get(self.hb_name[g])
+        if mine is not None and self.role[mine] == role:
+            return [mine]
+        return self.by_role[role]
+
+    def __call__(self, qpos: np.ndarray, hb_pairs: list[tuple[int, int]]) -> float | None:
+        m, d = self.m, self.d
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        best = None
+        for a, b in hb_pairs:
+            for x, y in itertools.product(self._ours(a), self._ours(b)):
+                if not (m.geom_contype[x] & m.geom_conaffinity[y]
+                        or m.geom_contype[y] & m.geom_conaffinity[x]):  # fmt: skip
+                    continue
+                gap = mujoco.mj_geomDistance(m, d, x, y, GAP_MAX, None)
+                best = gap if best is None else min(best, gap)
+        return best
+
+
+def _mm(x) -> dict:
+    a = np.asarray([v for v in x if v is not None and np.isfinite(v)]) * 1000.0
+    if not len(a):
+        return {}
+    return {"p50": round(float(np.median(a)), 1), "p95": round(float(np.percentile(a, 95)), 1),
+            "max": round(float(a.max()), 1)}  # fmt: skip
 
 
 # -- comparison -------------------------------------------------------------------------------
@@ -360,8 +439,16 @@ def check(name: str, args, workdir: Path) -> dict:
     if stages:
         notes.append(f"stages forced in turn: {', '.join(stages)}")
 
-    ours_fired, ours_pairs = classify(tables(m), *our_contacts(m, qpos, qvel, ctrl), n)
-    hb_fired, hb_pairs = classify(hb, hb["con_state"], hb["con_g1"], hb["con_g2"], n)
+    ours_con = our_contacts(m, qpos, qvel, ctrl)
+    hb_con = (hb["con_state"], hb["con_g1"], hb["con_g2"], hb["con_dist"])
+    ours_fired, ours_pairs = classify(tables(m), *ours_con[:3], n)
+    hb_fired, hb_pairs = classify(hb, *hb_con[:3], n)
+    ours_deep, hb_deep = deepest(tables(m), *ours_con, n), deepest(hb, *hb_con, n)
+    gap = OurGap(m, hb)
+    hb_role, _ = roles(hb)
+    hb_at = collections.defaultdict(list)  # (class, state) -> HumanoidBench's geom pairs
+    for i, a, b in zip(*hb_con[:3], strict=True):
+        hb_at[contact_class(hb_role[a], hb_role[b]), int(i)].append((int(a), int(b)))
     contacts = {}
     for c in CLASSES:
         o, h = ours_fired[c], hb_fired[c]
@@ -373,6 +460,8 @@ def check(name: str, args, workdir: Path) -> dict:
         only_ours, only_hb = collections.Counter(), collections.Counter()
         for i in np.flatnonzero(o != h):
             (only_ours if o[i] else only_hb).update(ours_pairs[c][i] if o[i] else hb_pairs[c][i])
+        hb_only = np.flatnonzero(h & ~o)
+        gaps = [gap(qpos[i], hb_at[c, int(i)]) for i in hb_only]
         contacts[label] = {
             "agreement": float((o == h).mean()),
             "ours_fires": int(o.sum()),
@@ -380,6 +469,14 @@ def check(name: str, args, workdir: Path) -> dict:
             "bar": c in BAR_CLASSES,
             "ours_only_pairs": [f"{k}: {v}" for k, v in only_ours.most_common(5)],
             "hb_only_pairs": [f"{k}: {v}" for k, v in only_hb.most_common(5)],
+            # states where only one side touches: how deep that side's contact is, and (only
+            # HumanoidBench's) how far apart our colliders are there (`OurGap`); in mm
+            "ours_only_states": int((o & ~h).sum()),
+            "hb_only_states": len(hb_only),
+            "ours_only_depth_mm": _mm(ours_deep[c][o & ~h]),
+            "hb_only_depth_mm": _mm(hb_deep[c][hb_only]),
+            "hb_only_our_gap_mm": _mm(gaps),
+            "hb_only_no_pair": sum(g is None for g in gaps),
         }
 
     for label, v in contacts.items():
