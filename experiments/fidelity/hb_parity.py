@@ -441,9 +441,10 @@ def check(name: str, args, workdir: Path) -> dict:
 
     ours_con = our_contacts(m, qpos, qvel, ctrl)
     hb_con = (hb["con_state"], hb["con_g1"], hb["con_g2"], hb["con_dist"])
-    ours_fired, ours_pairs = classify(tables(m), *ours_con[:3], n)
+    ours_t = tables(m)
+    ours_fired, ours_pairs = classify(ours_t, *ours_con[:3], n)
     hb_fired, hb_pairs = classify(hb, *hb_con[:3], n)
-    ours_deep, hb_deep = deepest(tables(m), *ours_con, n), deepest(hb, *hb_con, n)
+    ours_deep, hb_deep = deepest(ours_t, *ours_con, n), deepest(hb, *hb_con, n)
     gap = OurGap(m, hb)
     hb_role, _ = roles(hb)
     hb_at = collections.defaultdict(list)  # (class, state) -> HumanoidBench's geom pairs
