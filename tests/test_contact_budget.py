@@ -16,7 +16,7 @@ from mujoco import mjx
 from experiments.fidelity.pair_cap import active_contacts
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import h1, load, physics
-from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET
+from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, MANIPULATION_BUDGET
 from sirl_jax.envs.physics import OVERFLOW_METRIC, contact_budget, contact_profile
 from sirl_jax.run import runlog
 
@@ -75,7 +75,9 @@ def test_budget_is_read_reported_and_left_out_of_warps_sizes():
     _, env = load("bookshelf_simple")
     assert env.sim.contact_budget == env.task.max_contact_points > 0
     assert OVERFLOW_METRIC in env.metric_names()
-    _, push = load("push")
+    _, push = load("push")  # the manipulation tasks' shared budget
+    assert push.sim.contact_budget == MANIPULATION_BUDGET and OVERFLOW_METRIC in push.metric_names()
+    _, push = load("push", contact_budget=0)
     assert push.sim.contact_budget == 0 and OVERFLOW_METRIC not in push.metric_names()
 
 

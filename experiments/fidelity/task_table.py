@@ -8,7 +8,8 @@ Reads what two harnesses wrote, measures nothing itself:
   where only one side touches, how deep that side's contact is and how far apart our colliders
   are (`OurGap`).
 - `bench_tasks --out` (E = 64, every task against the bare robot, side by side): the speed
-  share (`ratio`) of each task at its default contact set, hand_floor and budget.
+  share (`ratio`) of each task at its default contact set, hand_floor and budget; given several
+  files, a task's row in a later one replaces an earlier one's.
 - `pair_cap --out` (docs/results/pair_cap.json): the share of states in which MJX's cull
   (`max_geom_pairs`) drops a pair that touches, in its worst collision group. hb_parity's
   contacts are MuJoCo C's on our model; this is what MJX, which trains, loses on top.
@@ -60,12 +61,16 @@ def reward_worst(row: dict) -> tuple[float, float]:
     return max(p["median"] for p in parts), max(p["p95"] for p in parts)
 
 
-def speed(bench: dict) -> dict[str, float]:
-    """{task: ratio} of each task's default row (contact set hb, hand_floor all)."""
+def speed(*benches: dict) -> dict[str, float]:
+    """{task: ratio} of each task's default row (contact set hb, hand_floor all, no lever); a
+    task's row in a later bench replaces an earlier bench's."""
     out = {}
-    for r in bench["rows"]:
-        if r.get("task") and "max_contact_points" not in r and "max_geom_pairs" not in r:
-            out.setdefault(r["task"], r["ratio"])
+    for bench in benches:
+        first = {}
+        for r in bench["rows"]:
+            if r.get("task") and "max_contact_points" not in r and "max_geom_pairs" not in r:
+                first.setdefault(r["task"], r["ratio"])
+        out.update(first)
     return out
 
 
@@ -150,15 +155,19 @@ def miss_table(parity: dict) -> list[str]:
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--parity", type=Path, default=Path("docs/results/hb_parity.json"))
-    p.add_argument("--bench", type=Path, required=True, help="bench_tasks --out JSON")
+    p.add_argument("--bench", type=Path, nargs="+", required=True,
+                   help="bench_tasks --out JSON files; a task's row in a later file replaces "
+                   "an earlier one's (a rerun of some tasks over a run of all)")  # fmt: skip
     p.add_argument("--pair-cap", type=Path, default=Path("docs/results/pair_cap.json"))
     args = p.parse_args(argv)
     parity = json.loads(args.parity.read_text())
-    bench = json.loads(args.bench.read_text())
-    print(f"<!-- hb_parity: {args.parity.name}; bench_tasks: {args.bench.name}, "
-          f"E = {bench['num_envs']}, {bench['rounds']} x {bench['calls']} calls -->")  # fmt: skip
+    benches = [json.loads(b.read_text()) for b in args.bench]
+    ratios = speed(*benches)
+    runs = "; ".join(f"{b.name}, E = {bench['num_envs']}, {bench['rounds']} x {bench['calls']} "
+                     f"calls" for b, bench in zip(args.bench, benches, strict=True))  # fmt: skip
+    print(f"<!-- hb_parity: {args.parity.name}; bench_tasks: {runs} -->")
     drops = cull(json.loads(args.pair_cap.read_text())) if args.pair_cap.exists() else {}
-    print("\n".join(main_table(parity, speed(bench), drops)))
+    print("\n".join(main_table(parity, ratios, drops)))
     print()
     print("\n".join(miss_table(parity)))
 

@@ -57,6 +57,12 @@ robot's rate; with the solver seeing the 64 most penetrating contacts, 0.79. Ran
 states of 11 locomotion tasks hold at most 43 active contacts (balance_hard; the others 11-31;
 `pair_cap`, docs/tasks.md, "Hands on the floor"); a step that fills the budget is reported
 (`physics_overflow`)."""
+MANIPULATION_BUDGET = 64
+"""The manipulation tasks' MJX contact budget unless a task sets its own. With all 62 hand
+colliders on the floor their scenes allocate 96-400 contact slots, and random-action states
+hold at most 15-104 active contacts (`pair_cap`). Every task's budget, locomotion's included,
+follows one rule: the smallest multiple of 32, at least 64, that is 20 or more above the
+task's measured maximum (docs/tasks.md, "Contact budget")."""
 
 
 class Task(abc.ABC):
@@ -115,7 +121,8 @@ class Task(abc.ABC):
     max_contact_points: int = 0
     """MJX's contact budget (`h1.set_max_contact_points`; 0: none), applied by the env after
     the scene; set it with `with_contact_budget`. The locomotion tasks set `LOCOMOTION_BUDGET`,
-    four manipulation scenes their own (docs/tasks.md, "Contact budget")."""
+    the manipulation tasks `MANIPULATION_BUDGET` or their own (docs/tasks.md, "Contact
+    budget")."""
 
     def with_contact_budget(self, budget: int) -> Task:
         """A copy of this task with MJX contact budget `budget`: -1 keeps the task's own, 0 none,

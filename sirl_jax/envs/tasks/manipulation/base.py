@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from sirl_jax.envs.humanoid import Task
+from sirl_jax.envs.humanoid import MANIPULATION_BUDGET, Task
 from sirl_jax.envs.tasks import scene
 from sirl_jax.hb_compat import HB
 
@@ -91,9 +91,10 @@ class ManipulationTask(Task):
     task's `build_scene`, then HumanoidBench's contact set unless `contact_set` is "reduced"
     (`scene.use_hb_contacts`), then keyframe 0 = `robot_qpos` followed by `object_qpos`
     (HumanoidBench's task `qpos0`), then `max_geom_pairs` (MJX keeps that many candidate pairs
-    per collision function; the scene's fixtures are many static geoms). Where a task sets
-    `max_contact_points` (MJX's contact budget: the solver sees that many contacts, the most
-    penetrating; docs/tasks.md, "Contact budget") the env applies it.
+    per collision function; the scene's fixtures are many static geoms). The env applies
+    `max_contact_points`, MJX's contact budget (the solver sees that many contacts, the most
+    penetrating; `MANIPULATION_BUDGET` unless the task sets its own; docs/tasks.md, "Contact
+    budget").
     """
 
     contacts = "manipulation"
@@ -102,6 +103,7 @@ class ManipulationTask(Task):
     object_qpos: Sequence[float] = ()
     """The keyframe entries of the task's joints after the robot's (free objects, hinges)."""
     max_geom_pairs: int = 8
+    max_contact_points = MANIPULATION_BUDGET
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         scene.use_hand_contacts(spec)

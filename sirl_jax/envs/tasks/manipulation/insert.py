@@ -113,6 +113,7 @@ class InsertTask(ManipulationTask):
     object_qpos = tuple(v for p in (PEG_POS["a"], PEG_POS["b"], BLOCK_POS)
                         for v in (*p, 1, 0, 0, 0))  # fmt: skip
     max_geom_pairs = 12
+    max_contact_points = 96  # docs/tasks.md, "Contact budget"
     metric_names = (
         "small_control", "stand_reward", "cube_target_reward", "hand_tool_proximity_reward",
         "peg_height_reward",

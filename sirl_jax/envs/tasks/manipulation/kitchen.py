@@ -167,7 +167,6 @@ class KitchenTask(ManipulationTask):
                                      6: ROOT_QUAT[3]})  # fmt: skip
     object_qpos = OBJECT_QPOS0
     max_geom_pairs = 16
-    max_contact_points = 96  # docs/tasks.md, "Contact budget"
     name = "kitchen"
     metric_names = (
         "success_subtasks", "success", "microwave_distance", "kettle_distance",

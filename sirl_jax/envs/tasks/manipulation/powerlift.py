@@ -55,7 +55,6 @@ class PowerliftTask(ManipulationTask):
 
     object_qpos = (*DUMBBELL_POS, 1, 0, 0, 0)
     max_geom_pairs = 8
-    max_contact_points = 64  # docs/tasks.md, "Contact budget"
     name = "powerlift"
     metric_names = (
         "stand_reward", "small_control", "reward_dumbbell_lifted", "standing", "upright",

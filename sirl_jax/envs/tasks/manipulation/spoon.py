@@ -102,6 +102,7 @@ class SpoonTask(ManipulationTask):
 
     object_qpos = (*SPOON_POS, 1, 0, 0, 0)
     max_geom_pairs = 8
+    max_contact_points = 96  # docs/tasks.md, "Contact budget"
     name = "spoon"
     metric_names = (
         "stand_reward", "small_control", "hand_tool_proximity_reward", "reward_spoon_in_cup",

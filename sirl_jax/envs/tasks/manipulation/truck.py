@@ -176,6 +176,7 @@ class TruckTask(ManipulationTask):
     robot_qpos = with_robot_entries({0: ROBOT_X})
     object_qpos = tuple(v for _, q in _PACKAGES for v in q)
     max_geom_pairs = 12
+    max_contact_points = 128  # docs/tasks.md, "Contact budget"
     name = "truck"
     metric_names = (
         "upright", "reward_robot_package_truck", "reward_robot_package_picked_up",
