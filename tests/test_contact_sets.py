@@ -21,6 +21,7 @@ from shapes import support
 
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import load
+from sirl_jax.envs.humanoid import HumanoidEnv
 from sirl_jax.envs.tasks import scene
 from sirl_jax.run import runlog
 
@@ -257,6 +258,16 @@ def test_every_manipulation_task_has_no_colliding_cylinder_in_hb():
         live = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
         assert not (live & (m.geom_type == scene.CYLINDER)).any(), task
         assert (live & (m.geom_type == mujoco.mjtGeom.mjGEOM_MESH)).sum() >= 1, task
+
+
+def test_task_sets_its_prism_sides():
+    """`ManipulationTask.prism_sides` reaches the prisms: 2 x sides vertices each."""
+    for sides in (scene.PRISM_SIDES, 12):
+        task = copy.copy(load("powerlift")[1].task)
+        task.prism_sides = sides
+        m = HumanoidEnv(task, "h1hand").mj_model
+        prisms = [i for i in range(m.nmesh) if "_prism_" in m.mesh(i).name]
+        assert len(prisms) == 2 and all(m.mesh_vertnum[i] == 2 * sides for i in prisms), sides
 
 
 @pytest.mark.slow

@@ -56,7 +56,8 @@ def test_bars():
     ratios = speed(bench)
     assert ratios == {"walk": 0.8, "push": 0.25}
     rerun = {"rows": [{"label": "push", "task": "push", "ratio": 0.4},
-                      {"label": "push k32", "task": "push", "max_geom_pairs": 32, "ratio": 0.3}]}
+                      {"label": "push k32", "task": "push", "max_geom_pairs": 32, "ratio": 0.3},
+                      {"label": "cube prism12", "task": "cube", "prism_sides": 12, "ratio": 0.9}]}
     assert speed(bench, rerun) == {"walk": 0.8, "push": 0.4}  # the later run's push
     assert speed(rerun, bench) == {"walk": 0.8, "push": 0.25}
     drops = cull({ids["push"]: {"groups": {"capsule-box": {"dropped_states": 0.04},

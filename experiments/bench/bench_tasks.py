@@ -11,7 +11,7 @@ so a change of machine load during the run moves both.
 
     .venv/bin/python -m experiments.bench.bench_tasks [--variant h1hand] [--num-envs 64]
         [--calls 10] [--rounds 3] [--tasks walk,pole] [--profile] [--max-geom-pairs K]
-        [--contact-sets hb,reduced] [--hand-floors all,none] [--out rows.json]
+        [--contact-sets hb,reduced] [--hand-floors all,none] [--prism-sides K] [--out rows.json]
 
 `--tasks` takes locomotion and manipulation names (a manipulation task runs on its own variant:
 h1hand, or h1strong for highbar_hard).
@@ -24,6 +24,9 @@ collision function (the lever for a scene with many box colliders). `--max-conta
 the same task with MJX's contact budget set to K (-1: none), for a task that sets one
 (docs/tasks.md, "Contact budget"). `--contact-sets` and `--hand-floors` measure each task in each
 contact set it reads and each `hand_floor` (the bare robot's hands never touch the floor).
+
+`--prism-sides K` adds the same task with its colliding cylinders as K-sided prisms instead of
+`scene.PRISM_SIDES` (the hb contact set's stand-in: MJX has no box-cylinder pair).
 
 `--out` also writes every row, as it is measured, to a JSON file (the run's settings and one
 object per row; `experiments.fidelity.task_table` reads it).
@@ -183,6 +186,9 @@ def main() -> None:
     parser.add_argument("--max-contact-points", type=int, default=0,
                         help="also measure each task that has a contact budget with this one "
                         "(-1: none)")  # fmt: skip
+    parser.add_argument("--prism-sides", type=int, default=0,
+                        help="also measure each task that turns colliding cylinders into "
+                        "prisms (the hb contact set) with prisms of this many sides")  # fmt: skip
     parser.add_argument("--contact-sets", default=HB,
                         help=f"comma-separated contact sets for the tasks that read one (the "
                         f"manipulation tasks, {', '.join(CONTACT_SET_LOCOMOTION)}), each "
@@ -264,6 +270,20 @@ def main() -> None:
             report(f"{name} {tag}{k}", stepper, *side_by_side(stepper, bare, args.rounds),
                    task=name, **{numeric: k})  # fmt: skip
             del stepper
+        if args.prism_sides and has_prisms(env.mj_model):
+            task = copy.copy(env.task)
+            task.prism_sides = args.prism_sides
+            stepper = Stepper(HumanoidEnv(task, variant, success_bar=row.success_bar),
+                              args.num_envs, args.calls)  # fmt: skip
+            report(f"{name} prism{args.prism_sides}", stepper,
+                   *side_by_side(stepper, bare, args.rounds), task=name,
+                   prism_sides=args.prism_sides)  # fmt: skip
+            del stepper
+
+
+def has_prisms(model: mujoco.MjModel) -> bool:
+    """Whether the model holds a prism `scene.cylinder_to_prism` made."""
+    return any("_prism_" in model.mesh(i).name for i in range(model.nmesh))
 
 
 if __name__ == "__main__":

@@ -127,7 +127,7 @@ def use_link_contacts(spec: mujoco.MjSpec) -> None:
     set_contact_bits(spec, {"links": h1.GEOM_GROUPS["links"]}, ("links",))
 
 
-def use_hb_contacts(spec: mujoco.MjSpec) -> None:
+def use_hb_contacts(spec: mujoco.MjSpec, prism_sides: int = PRISM_SIDES) -> None:
     """HumanoidBench's contact set (`contact_set="hb"`, sirl_jax/hb_compat.py): every fixture
     touches the robot's colliders and hands, every free object touches the robot's colliders,
     the hands and the other objects. Call it once the scene is built.
@@ -139,7 +139,7 @@ def use_hb_contacts(spec: mujoco.MjSpec) -> None:
     conaffinity. Door's panel and walls carry their own bits and leave LINKS out (docs/tasks.md:
     MJX's cull then drops more touching pairs, and MuJoCo C's agreement gains nothing). MJX has
     no box-cylinder pair, and the robot's soles and palms are boxes, so every colliding cylinder
-    becomes a `PRISM_SIDES`-gon prism of the same area and length (`cylinder_to_prism`)."""
+    becomes a `prism_sides`-gon prism of the same area and length (`cylinder_to_prism`)."""
     use_link_contacts(spec)
     for geom in spec.geoms:
         if geom.contype & FIXTURE and geom.conaffinity == 0:
@@ -149,7 +149,7 @@ def use_hb_contacts(spec: mujoco.MjSpec) -> None:
             geom.conaffinity |= OBJECT | h1.ROBOT_CONTYPE
     for geom in list(spec.geoms):
         if geom.type == CYLINDER and (geom.contype or geom.conaffinity):
-            cylinder_to_prism(spec, geom, PRISM_SIDES)
+            cylinder_to_prism(spec, geom, prism_sides)
 
 
 def prism_radius(radius: float, sides: int) -> float:

@@ -104,12 +104,15 @@ class ManipulationTask(Task):
     """The keyframe entries of the task's joints after the robot's (free objects, hinges)."""
     max_geom_pairs: int = 8
     max_contact_points = MANIPULATION_BUDGET
+    prism_sides: int = scene.PRISM_SIDES
+    """Sides of the prism that stands in for each colliding cylinder in the `hb` contact set
+    (`scene.use_hb_contacts`)."""
 
     def build(self, spec: mujoco.MjSpec, variant: str) -> None:
         scene.use_hand_contacts(spec)
         self.build_scene(spec, variant)
         if self.contact_set == HB:
-            scene.use_hb_contacts(spec)
+            scene.use_hb_contacts(spec, self.prism_sides)
         set_keyframe(spec, self.robot_qpos, self.object_qpos)
         scene.set_max_geom_pairs(spec, self.max_geom_pairs)
 
