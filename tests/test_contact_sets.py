@@ -288,6 +288,27 @@ def test_mjx_agrees_with_c_on_the_dropped_book():
     assert abs(j) < HELD and abs(j - c) < MJX_TOL, (c, j)
 
 
+def package_heights(m, backend: str) -> np.ndarray:
+    """Truck's packages' body z after `STEPS` from the keyframe (the robot 5 m away)."""
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    d.qpos[0] = -5.0
+    mujoco.mj_forward(m, d)
+    bodies = [b for b in range(m.nbody) if m.body(b).name.startswith("package_")]
+    geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] in bodies and m.geom_contype[g]]
+    xpos, _ = simulate(m, d, backend)
+    return np.array([xpos[g][2] for g in geoms])
+
+
+# Failed at truck's earlier cap of 12: the stacked packages' box-box pairs ranked past it in
+# MJX's cull in every state (pair_cap) and the upper packages sank into the lower ones.
+@pytest.mark.timeout(600)
+def test_mjx_keeps_truck_packages_stacked():
+    m = _env("truck", "hb").mj_model
+    c, j = package_heights(m, "c"), package_heights(m, "mjx")
+    assert len(c) == 5 and np.abs(j - c).max() < MJX_TOL, (c, j)
+
+
 def test_contact_set_is_checked_and_old_runs_resume_as_reduced(tmp_path):
     with pytest.raises(ValueError, match=r"contact_set.*'full'.*'hb', 'reduced'"):
         load("push", contact_set="full")

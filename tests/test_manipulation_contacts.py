@@ -104,10 +104,11 @@ def test_dumbbell_rests_on_floor_and_cubes_on_palms():
     mujoco.mj_resetDataKeyframe(m, d, 0)
     _settle(m, d, 200)
     adr, _ = manip.free_joint_adr(m, "free_dumbbell")
-    # weights r 0.2 on the floor, as 16-gon prisms of the same area ("hb" contact set): the
+    # weights r 0.2 on the floor, as 12-gon prisms of the same area ("hb" contact set): the
     # prism's lowest point lies between its edge midpoint and its vertex radius
-    r_prism = scene.prism_radius(0.2, 16)
-    assert r_prism * math.cos(math.pi / 16) - 1e-3 < d.qpos[adr + 2] < r_prism + 1e-3
+    assert env.task.prism_sides == 12
+    r_prism = scene.prism_radius(0.2, 12)
+    assert r_prism * math.cos(math.pi / 12) - 1e-3 < d.qpos[adr + 2] < r_prism + 1e-3
     assert {"weight_0_collision", "weight_1_collision"} <= set().union(*_pairs(m, d))
     close(m.body_subtreemass[manip.body_id(m, "dumbbell")], 104.0, tol=0.05)
     env = make("cube")
