@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from experiments.fidelity.hb_parity import GAP_MAX, OurGap, deepest, tables
+from experiments.fidelity.hb_parity import GAP_MAX, OurGap, deepest, merge, tables
 
 XML = """
 <mujoco>
@@ -93,3 +93,12 @@ def test_deepest_contact_per_class(model):
     np.testing.assert_allclose(out["robot-static"], [np.nan, 0.002, np.nan])
     np.testing.assert_allclose(out["object-floor"], [np.nan, np.nan, 0.001])
     assert np.isnan(out["hand-object"]).all()
+
+
+def test_a_failed_rerun_keeps_the_measured_row():
+    results = {"a": {"states": 500}, "b": {"error": "old"}}
+    assert not merge(results, "a", {"error": "torch missing"})
+    assert results["a"] == {"states": 500}
+    assert merge(results, "b", {"error": "new"}) and results["b"] == {"error": "new"}
+    assert merge(results, "c", {"error": "x"}) and merge(results, "a", {"states": 400})
+    assert results["a"] == {"states": 400}

@@ -571,6 +571,16 @@ def print_table(rows: list[dict]) -> None:
         )
 
 
+def merge(results: dict[str, dict], name: str, row: dict) -> bool:
+    """Puts `row` under `name` in `results`, unless the row is a failure ("error") and
+    `results` holds a measured row there: a failed rerun never replaces a measurement.
+    Returns whether it did."""
+    if "error" in row and name in results and "error" not in results[name]:
+        return False
+    results[name] = row
+    return True
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--python", required=True, help="REFENV/bin/python (HumanoidBench's venv)")
@@ -607,11 +617,15 @@ def main(argv=None) -> None:
         for name in names:
             row = check(name, args, workdir)
             rows.append(row)
-            results[name] = row
             print(json.dumps(row), flush=True)
+            if not merge(results, name, row):
+                print(f"{name}: failed; {args.out} keeps its earlier row", flush=True)
+                continue
             if args.out:
                 args.out.parent.mkdir(parents=True, exist_ok=True)
-                args.out.write_text(json.dumps(results, indent=1) + "\n")
+                tmp = args.out.with_suffix(".tmp")
+                tmp.write_text(json.dumps(results, indent=1) + "\n")
+                tmp.replace(args.out)
     print_table(rows)
 
 

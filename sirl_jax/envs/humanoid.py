@@ -59,7 +59,7 @@ states of 11 locomotion tasks hold at most 43 active contacts (balance_hard; the
 (`physics_overflow`)."""
 MANIPULATION_BUDGET = 64
 """The manipulation tasks' MJX contact budget unless a task sets its own. With all 62 hand
-colliders on the floor their scenes allocate 96-400 contact slots, and random-action states
+colliders on the floor their scenes allocate 236-627 contact slots, and random-action states
 hold at most 15-104 active contacts (`pair_cap`). Every task's budget, locomotion's included,
 follows one rule: the smallest multiple of 32, at least 64, that is 20 or more above the
 task's measured maximum (docs/tasks.md, "Contact budget")."""
