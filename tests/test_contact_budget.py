@@ -16,7 +16,7 @@ from mujoco import mjx
 from experiments.fidelity.pair_cap import active_contacts
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import h1, load, physics
-from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, MANIPULATION_BUDGET
+from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, MANIPULATION_BUDGET, budget_for
 from sirl_jax.envs.physics import OVERFLOW_METRIC, contact_budget, contact_profile
 from sirl_jax.run import runlog
 
@@ -110,3 +110,9 @@ def test_budget_option_is_checked_and_old_runs_resume_without_one(tmp_path):
     del saved["train"]["contact_budget"]  # a config.json written before the option existed
     (tmp_path / "config.json").write_text(json.dumps(saved))
     assert runlog.load_config(tmp_path).train.contact_budget == 0
+
+
+def test_budget_rule():
+    """The smallest multiple of 32, at least 64, 20 or more above the measured maximum."""
+    assert [budget_for(n) for n in (0, 43, 44, 45, 49, 76, 77, 92, 104, 109)] == [
+        64, 64, 64, 96, 96, 96, 128, 128, 128, 160]

@@ -266,7 +266,7 @@ def test_task_sets_its_prism_sides():
         task = copy.copy(load("powerlift")[1].task)
         task.prism_sides = sides
         m = HumanoidEnv(task, "h1hand").mj_model
-        prisms = [i for i in range(m.nmesh) if "_prism_" in m.mesh(i).name]
+        prisms = scene.prism_meshes(m)
         assert len(prisms) == 2 and all(m.mesh_vertnum[i] == 2 * sides for i in prisms), sides
 
 

@@ -270,7 +270,7 @@ def main() -> None:
             report(f"{name} {tag}{k}", stepper, *side_by_side(stepper, bare, args.rounds),
                    task=name, **{numeric: k})  # fmt: skip
             del stepper
-        if args.prism_sides and has_prisms(env.mj_model):
+        if args.prism_sides and scene.prism_meshes(env.mj_model):
             task = copy.copy(env.task)
             task.prism_sides = args.prism_sides
             stepper = Stepper(HumanoidEnv(task, variant, success_bar=row.success_bar),
@@ -279,11 +279,6 @@ def main() -> None:
                    *side_by_side(stepper, bare, args.rounds), task=name,
                    prism_sides=args.prism_sides)  # fmt: skip
             del stepper
-
-
-def has_prisms(model: mujoco.MjModel) -> bool:
-    """Whether the model holds a prism `scene.cylinder_to_prism` made."""
-    return any("_prism_" in model.mesh(i).name for i in range(model.nmesh))
 
 
 if __name__ == "__main__":

@@ -50,19 +50,26 @@ from sirl_jax.hb_compat import (
 FRAME_SKIP = h1.N_SUBSTEPS
 """Physics substeps per control step (dt 0.002 s -> 50 Hz control), as in HumanoidBench."""
 RESET_NOISE = 0.01
-LOCOMOTION_BUDGET = 64
-"""The locomotion tasks' MJX contact budget. With all 62 hand colliders on the floor (the
+
+
+def budget_for(max_active: int) -> int:
+    """A task's MJX contact budget from the most active contacts measured on it (`pair_cap`,
+    random-action states, hands on the floor): the smallest multiple of 32, at least 64, that
+    is 20 or more above `max_active` (docs/tasks.md, "Contact budget")."""
+    return max(64, -(-(max_active + 20) // 32) * 32)
+
+
+LOCOMOTION_BUDGET = budget_for(43)
+"""The locomotion tasks' MJX contact budget (64). With all 62 hand colliders on the floor (the
 `hand_floor` default) walk has 181 contact slots and steps at 0.54 of the bare hands-off
 robot's rate; with the solver seeing the 64 most penetrating contacts, 0.79. Random-action
 states of 11 locomotion tasks hold at most 43 active contacts (balance_hard; the others 11-31;
 `pair_cap`, docs/tasks.md, "Hands on the floor"); a step that fills the budget is reported
 (`physics_overflow`)."""
-MANIPULATION_BUDGET = 64
-"""The manipulation tasks' MJX contact budget unless a task sets its own. With all 62 hand
-colliders on the floor their scenes allocate 236-627 contact slots, and random-action states
-hold at most 15-104 active contacts (`pair_cap`). Every task's budget, locomotion's included,
-follows one rule: the smallest multiple of 32, at least 64, that is 20 or more above the
-task's measured maximum (docs/tasks.md, "Contact budget")."""
+MANIPULATION_BUDGET = budget_for(44)
+"""The manipulation tasks' MJX contact budget (64) unless a task's measured maximum needs
+more (`budget_for`). With all 62 hand colliders on the floor their scenes allocate 236-627
+contact slots, and random-action states hold at most 15-104 active contacts (`pair_cap`)."""
 
 
 class Task(abc.ABC):

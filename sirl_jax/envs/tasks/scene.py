@@ -118,6 +118,8 @@ def use_hand_contacts(spec: mujoco.MjSpec) -> None:
 
 PRISM_SIDES = 16
 """Sides of the prism that stands in for a colliding cylinder in the `hb` contact set."""
+PRISM_TAG = "_prism_"
+"""Part of the name of every mesh `cylinder_to_prism` makes (`prism_meshes`)."""
 
 
 def use_link_contacts(spec: mujoco.MjSpec) -> None:
@@ -158,6 +160,11 @@ def prism_radius(radius: float, sides: int) -> float:
     return radius * math.sqrt(2 * math.pi / (sides * math.sin(2 * math.pi / sides)))
 
 
+def prism_meshes(model: mujoco.MjModel) -> list[int]:
+    """Ids of the meshes `cylinder_to_prism` made in a compiled model."""
+    return [i for i in range(model.nmesh) if PRISM_TAG in model.mesh(i).name]
+
+
 def cylinder_to_prism(spec: mujoco.MjSpec, geom: mujoco.MjsGeom, sides: int) -> None:
     """Turns a cylinder geom into a convex mesh prism along its z axis: same frame, length and
     cross-section area (`prism_radius`). MJX collides meshes with boxes (`convex_convex`)."""
@@ -168,7 +175,7 @@ def cylinder_to_prism(spec: mujoco.MjSpec, geom: mujoco.MjsGeom, sides: int) -> 
         for k in range(sides):
             a = 2 * math.pi * k / sides
             verts += [r * math.cos(a), r * math.sin(a), z]
-    mesh = spec.add_mesh(name=f"{geom.name or 'cylinder'}_prism_{len(spec.meshes)}")
+    mesh = spec.add_mesh(name=f"{geom.name or 'cylinder'}{PRISM_TAG}{len(spec.meshes)}")
     mesh.uservert = verts
     geom.type = mujoco.mjtGeom.mjGEOM_MESH
     geom.meshname = mesh.name

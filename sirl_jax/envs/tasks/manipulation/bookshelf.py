@@ -11,6 +11,7 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
+from sirl_jax.envs.humanoid import budget_for
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.manipulation.base import (
     ManipulationTask,
@@ -114,7 +115,7 @@ class BookshelfTask(ManipulationTask):
     object_qpos = tuple(v for name in OBJECTS for v in (
         *_POSES[name], *(() if len(_POSES[name]) == 7 else (1.0, 0.0, 0.0, 0.0))))  # fmt: skip
     max_geom_pairs = 32
-    max_contact_points = 128  # docs/tasks.md, "Contact budget"
+    max_contact_points = budget_for(104)  # its most active contacts (pair_cap)
 
     def __init__(self, name: str):
         if name not in ("bookshelf_simple", "bookshelf_hard"):

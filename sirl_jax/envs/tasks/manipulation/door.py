@@ -10,6 +10,7 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
+from sirl_jax.envs.humanoid import budget_for
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.manipulation.base import (
     ManipulationTask,
@@ -108,7 +109,7 @@ class DoorTask(ManipulationTask):
 
     object_qpos = (0.0, 0.0)  # the door and hatch hinges
     max_geom_pairs = 48  # the walls' cull: docs/tasks.md, "Contact budget"
-    max_contact_points = 96  # docs/tasks.md, "Contact budget"
+    max_contact_points = budget_for(61)  # its most active contacts (pair_cap)
     name = "door"
     metric_names = (
         "stand_reward", "small_control", "door_openness_reward", "door_hatch_openness_reward",

@@ -11,6 +11,7 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
+from sirl_jax.envs.humanoid import budget_for
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.manipulation.base import ManipulationTask, hand_sites
 
@@ -113,7 +114,7 @@ class InsertTask(ManipulationTask):
     object_qpos = tuple(v for p in (PEG_POS["a"], PEG_POS["b"], BLOCK_POS)
                         for v in (*p, 1, 0, 0, 0))  # fmt: skip
     max_geom_pairs = 12
-    max_contact_points = 96  # docs/tasks.md, "Contact budget"
+    max_contact_points = budget_for(47)  # its most active contacts (pair_cap)
     metric_names = (
         "small_control", "stand_reward", "cube_target_reward", "hand_tool_proximity_reward",
         "peg_height_reward",

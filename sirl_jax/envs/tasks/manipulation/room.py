@@ -10,6 +10,7 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
+from sirl_jax.envs.humanoid import budget_for
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.manipulation.base import (
     ManipulationTask,
@@ -85,7 +86,7 @@ class RoomTask(ManipulationTask):
     reset_edits = True
     object_qpos = tuple(v for n in OBJECTS for v in (0.0, 0.0, _POSES[n][0], *_POSES[n][1]))
     max_geom_pairs = 8
-    max_contact_points = 96  # docs/tasks.md, "Contact budget"
+    max_contact_points = budget_for(50)  # its most active contacts (pair_cap)
     name = "room"
     metric_names = ("stand_reward", "small_control", "standing", "upright",
                     "room_object_organized")  # fmt: skip

@@ -10,6 +10,7 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
+from sirl_jax.envs.humanoid import budget_for
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.manipulation.base import (
     ManipulationTask,
@@ -102,7 +103,7 @@ class SpoonTask(ManipulationTask):
 
     object_qpos = (*SPOON_POS, 1, 0, 0, 0)
     max_geom_pairs = 8
-    max_contact_points = 96  # docs/tasks.md, "Contact budget"
+    max_contact_points = budget_for(49)  # its most active contacts (pair_cap)
     name = "spoon"
     metric_names = (
         "stand_reward", "small_control", "hand_tool_proximity_reward", "reward_spoon_in_cup",
