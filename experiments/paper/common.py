@@ -29,6 +29,7 @@ from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import load
 from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.compile_cache import enable_compilation_cache
+from sirl_jax.run.host_memory import trim_host_heap
 from sirl_jax.run.reference import paper_2m, paper_hours
 from sirl_jax.run.runlog import CsvLog
 from sirl_jax.run.states import commit
@@ -175,6 +176,9 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
                                    or done >= tc.steps or over):  # fmt: skip
             run_eval(state, done, wall)
             ckpt.save(done, {"state": state}, {"wall_s": wall, "cpu_s": train_cpu()})
+            trim_host_heap()  # what the evaluation and the checkpoint write freed
+        elif chunks == 1:
+            trim_host_heap()  # what compiling the step freed
     ckpt.close()
     rate = math.nan
     if len(timing) >= 3:  # steady chunks: the first planning one still compiles or pretrains

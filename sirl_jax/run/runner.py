@@ -25,6 +25,7 @@ from sirl_jax.run import runlog
 from sirl_jax.run.checkpoint import Checkpointer, CheckpointWriteError
 from sirl_jax.run.cost_probe import cost_line
 from sirl_jax.run.errors import TrainingFailure, UsageError
+from sirl_jax.run.host_memory import trim_host_heap
 from sirl_jax.run.states import commit, copy_state, restore_state, save_state
 from sirl_jax.sharding import ENVS, batch_constraint, env_shardings, make_mesh, place, sharded_step
 from sirl_jax.train import Train, make_train
@@ -172,7 +173,7 @@ class Run:
         backup_fn = jax.jit(copy_state) if self.guard else (lambda s: None)
         eval_fn = jax.jit(self.train.evaluate)
         env_steps, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
-        mean = prog.MetricMean()
+        mean, first = prog.MetricMean(), True
         with prog.StopOnSigint() as stop, contextlib.closing(self.bar):
             while env_steps < t.steps and not stop.requested:
                 before = env_steps
@@ -190,10 +191,15 @@ class Run:
                 mean.add(metrics)
                 if prog.crossed(before, env_steps, t.log_every) or env_steps >= t.steps:
                     self.log.log("metrics", env_steps, mean.pop())
-                if prog.crossed(before, env_steps, t.eval_every):
+                evaluated = prog.crossed(before, env_steps, t.eval_every)
+                if evaluated:
                     self.evaluate(eval_fn, state, env_steps)
-                if prog.crossed(before, env_steps, t.checkpoint_interval):
+                saved = prog.crossed(before, env_steps, t.checkpoint_interval)
+                if saved:
                     self.saved = self.save(state)
+                if evaluated or saved or first:  # what a compile, an eval or a save freed
+                    trim_host_heap()
+                first = False
         if stop.requested and env_steps < t.steps and mean.pending():
             self.log.log("metrics", env_steps, mean.pop())
         self.saved = self.save(state)
