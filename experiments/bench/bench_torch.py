@@ -36,11 +36,13 @@ import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import jax
 
-from experiments.bench.bench_agent import synthetic_batch
+from experiments.bench.bench_agent import compile_timed, synthetic_batch
 from sirl_jax.agent import AgentConfig, make_agent
+from sirl_jax.run.runlog import write_json
 
 O, A = 151, 61
 
@@ -164,9 +166,7 @@ def ours(cfg: AgentConfig):
     agent = make_agent(cfg, O, A, episode_length=1000)
     args = (agent.init(jax.random.PRNGKey(0)), synthetic_batch(cfg, O, A, jax.random.PRNGKey(1)),
             jax.numpy.float32(100.0), jax.random.PRNGKey(2))  # fmt: skip
-    t = time.perf_counter()
-    fn = jax.jit(agent.update).lower(*args).compile()
-    compile_s = time.perf_counter() - t
+    fn, compile_s = compile_timed(agent.update, *args)
     for _ in range(3):
         jax.block_until_ready(fn(*args))
 
@@ -226,10 +226,7 @@ def main() -> None:
                "rounds": args.rounds, "median_ms": med, "times_ms": times,
                "ours_compile_s": ours_compile, "jax": jax.__version__,
                "torch": {n: c.info for n, c in torch_cases.items()}}  # fmt: skip
-        tmp = args.out + ".tmp"
-        with open(tmp, "w") as f:
-            json.dump(doc, f, indent=1)
-        os.replace(tmp, args.out)
+        write_json(Path(args.out), doc)
 
 
 if __name__ == "__main__":

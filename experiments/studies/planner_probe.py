@@ -25,7 +25,7 @@ import tyro
 from sirl_jax.envs import load
 from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.compile_cache import enable_compilation_cache
-from sirl_jax.run.runlog import CsvLog, load_config
+from sirl_jax.run.runlog import CsvLog, RunDirError, load_config
 from sirl_jax.train import make_train
 
 
@@ -63,17 +63,20 @@ def main(args: Args) -> None:
     enable_compilation_cache()
     arm = Path(args.arm_dir)
     sizes = {s: parse_size(s) for s in args.sizes}
-    base = load_config(arm)
+    try:
+        base = load_config(arm)
+    except RunDirError as e:
+        raise SystemExit(f"error: --arm-dir: {e}") from None
     env = load(base.train.task)[1]
-    seeds = None
+    if not (arm / "eval.csv").exists():
+        raise SystemExit(f"error: {arm} has no eval.csv (the study arm's seeds are read from it)")
+    seeds = len({r["seed"] for r in CsvLog(arm / "eval.csv").rows()})
     ckpt = Checkpointer(arm / "checkpoints")
     try:
         step = args.step if args.step is not None else ckpt.latest_step()
         if step is None:
             raise SystemExit(f"error: {arm / 'checkpoints'} holds no checkpoint")
         train0 = make_train(base, env)
-        meta = (arm / "eval.csv").exists() and CsvLog(arm / "eval.csv").rows()
-        seeds = len({r["seed"] for r in meta}) if meta else 3
         keys = jax.random.split(jax.random.PRNGKey(0), seeds)
         shape = jax.eval_shape(jax.vmap(train0.init), keys)
         state = ckpt.restore({"state": shape}, step)["state"]
