@@ -34,8 +34,8 @@ import numpy as np
 import tyro
 
 from experiments.bench.bench_train import _parts, _timings
+from experiments.paper.common import arm_env
 from experiments.studies.sit_simple import config
-from sirl_jax.envs import load
 from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.run.runlog import CsvLog
@@ -107,7 +107,7 @@ def main(args: Args) -> None:
         cfg = dataclasses.replace(cfg, train=dataclasses.replace(cfg.train, seed_steps=400,
                                                                  pretrain=False))  # fmt: skip
     tc = cfg.train
-    train = make_train(cfg, load(tc.task)[1])
+    train = make_train(cfg, arm_env(cfg))
     state = _state(train, args.seeds, arm_dir)
     k, e = tc.chunk_steps, tc.num_envs
     per_call = k * e  # env steps per seed per call

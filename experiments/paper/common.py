@@ -77,6 +77,12 @@ def _finite(x: float, digits: int = 3):
     return round(float(x), digits) if math.isfinite(float(x)) else ""
 
 
+def arm_env(config: Config):
+    """The env `config` trains on: its task built with its env options (`TrainConfig.env_options`:
+    hb_compat, contact_set, hand_floor, contact_budget), as the CLI builds it."""
+    return load(config.train.task, **config.train.env_options)[1]
+
+
 def run_arm(config: Config, seeds: int, out: Path, label: str,
             max_chunks: int | None = None, budget_cpu_s: float | None = None) -> dict:  # fmt: skip
     """Trains `seeds` seeds of `config` vmapped, resumably; returns done.json's summary.
@@ -90,7 +96,7 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
     if (out / "done.json").exists():
         return json.loads((out / "done.json").read_text())
     tc = config.train
-    train = make_train(config, load(tc.task)[1])
+    train = make_train(config, arm_env(config))
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(dataclasses.asdict(config), indent=1))
     print(f"{label}: {tc.task}, {seeds} seeds x {tc.num_envs} envs, beta "

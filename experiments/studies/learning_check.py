@@ -93,7 +93,7 @@ def main(args: Args) -> None:
         sirl = dataclasses.replace(cfg.agent.sirl, beta=args.beta)
         cfg = dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, sirl=sirl))
     tc = cfg.train
-    env = load(tc.task)[1]
+    env = load(tc.task, **tc.env_options)[1]
     train = make_train(cfg, env)
     print(train.buffer.describe())
     print(f"seed_steps={train.seed_steps} pretrain_updates={train.pretrain_updates}")

@@ -22,7 +22,7 @@ import jax
 import numpy as np
 import tyro
 
-from sirl_jax.envs import load
+from experiments.paper.common import arm_env
 from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.run.runlog import CsvLog, RunDirError, load_config
@@ -67,7 +67,7 @@ def main(args: Args) -> None:
         base = load_config(arm)
     except RunDirError as e:
         raise SystemExit(f"error: --arm-dir: {e}") from None
-    env = load(base.train.task)[1]
+    env = arm_env(base)
     if not (arm / "eval.csv").exists():
         raise SystemExit(f"error: {arm} has no eval.csv (the study arm's seeds are read from it)")
     seeds = len({r["seed"] for r in CsvLog(arm / "eval.csv").rows()})

@@ -252,6 +252,17 @@ def sim2sim(export_dir: Path | None, episodes: int, policy: str, max_steps: int 
     return _sim2sim(export_dir, episodes, policy, max_steps, seed, mjx, None)
 
 
+def _env_options(export_dir: Path, contract: dict) -> dict:
+    """The env options the exported run trained with (its config.json's `train.env_options`),
+    so the MJX reference env is the exported model's; {} (the task's defaults) for an export
+    without a training config."""
+    if not contract.get("training"):
+        return {}
+    from sirl_jax.run.runlog import load_config
+
+    return load_config(export_dir).train.env_options
+
+
 def _sim2sim(export_dir: Path, episodes: int, policy: str, max_steps: int | None, seed: int,
              mjx: bool, env) -> dict:  # fmt: skip
     from sirl_jax.envs.humanoid import HumanoidEnv
@@ -264,7 +275,7 @@ def _sim2sim(export_dir: Path, episodes: int, policy: str, max_steps: int | None
     if env is None:
         from sirl_jax.envs import load
 
-        env = load(contract["task"]["id"])[1]
+        env = load(contract["task"]["id"], **_env_options(export_dir, contract))[1]
     scored = isinstance(env, HumanoidEnv) and not env.task.reads_contact_slots
     recorder = Recorder(model) if scored else None
     cpu = cpu_episodes(export_dir, contract, policy, initial, T, seed, recorder)

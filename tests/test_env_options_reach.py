@@ -1,0 +1,74 @@
+"""A config's env options (`TrainConfig.env_options`: hb_compat, contact_set, hand_floor,
+contact_budget) reach the env every entry point builds, not only the CLI's: the studies' arms
+(`experiments.paper.common.arm_env`, used by run_arm, planner_probe and bench_study) and
+sim2sim's MJX reference env (the exported run's config). The sit_simple study once ran with
+the task's defaults while its config.json recorded the reduced contact set."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import mujoco
+import pytest
+
+from experiments.paper.common import arm_env
+from experiments.studies.sit_simple import STUDY_ENV, config
+from sirl_jax.config import Config, TrainConfig
+from sirl_jax.envs import h1
+from sirl_jax.run.sim2sim import _env_options
+
+
+def _hands_on_floor(m: mujoco.MjModel) -> int:
+    """How many hand colliders pair with the floor (MuJoCo's contype/conaffinity rule)."""
+    floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+    n = 0
+    for name in h1.GEOM_GROUPS["hands"]:
+        g = m.geom(name).id
+        n += bool((m.geom_contype[floor] & m.geom_conaffinity[g])
+                  or (m.geom_contype[g] & m.geom_conaffinity[floor]))  # fmt: skip
+    return n
+
+
+def _budget(m: mujoco.MjModel) -> int:
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, "max_contact_points")
+    return 0 if i < 0 else int(m.numeric_data[m.numeric_adr[i]])
+
+
+@pytest.mark.timeout(300)
+def test_a_study_arm_builds_the_env_its_config_names():
+    """The study config's options (hands off the floor, no contact budget) reach the arm's env;
+    the same config with the task's defaults gives HumanoidBench's: all 62 hand colliders on the
+    floor and the locomotion budget of 64."""
+    study = config("e4-utd1", 0.0, 1_000)
+    assert {k: study.train.env_options[k] for k in STUDY_ENV} == STUDY_ENV
+    m = arm_env(study).mj_model
+    assert (_hands_on_floor(m), _budget(m)) == (0, 0)
+    defaults = dataclasses.replace(study, train=dataclasses.replace(
+        study.train, hand_floor=TrainConfig.hand_floor, contact_set=TrainConfig.contact_set,
+        contact_budget=TrainConfig.contact_budget))  # fmt: skip
+    m = arm_env(defaults).mj_model
+    assert (_hands_on_floor(m), _budget(m)) == (62, 64)
+
+
+def test_sim2sim_reference_env_takes_the_exported_runs_options(tmp_path):
+    cfg = Config(train=TrainConfig(task="h1hand-sit_simple-v0", hand_floor="none",
+                                   contact_set="reduced", contact_budget=0))  # fmt: skip
+    (tmp_path / "config.json").write_text(json.dumps(dataclasses.asdict(cfg)))
+    options = _env_options(tmp_path, {"training": {"config_file": "config.json"}})
+    assert options == cfg.train.env_options
+    assert options["hand_floor"] == "none" and options["contact_budget"] == 0
+    # an export without a training config (sim2sim --task) takes the task's defaults
+    assert _env_options(tmp_path, {"training": None}) == {}
+
+
+def test_the_study_env_sets():
+    """--env-set reduced is the 100k study's env, hb the task's defaults; others are named."""
+    from experiments.studies.sit_simple import env_options
+
+    hb = config("e4-utd1", 1.0, 1_000, env_set="hb").train
+    assert hb.env_options == Config(train=TrainConfig(task=hb.task)).train.env_options
+    r = config("e4-utd1", 1.0, 1_000).train
+    assert (r.hand_floor, r.contact_set, r.contact_budget) == ("none", "reduced", 0)
+    with pytest.raises(SystemExit, match="'bogus' is unknown; allowed: reduced, hb"):
+        env_options("bogus")
