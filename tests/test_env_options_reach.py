@@ -72,3 +72,28 @@ def test_the_study_env_sets():
     assert (r.hand_floor, r.contact_set, r.contact_budget) == ("none", "reduced", 0)
     with pytest.raises(SystemExit, match="'bogus' is unknown; allowed: reduced, hb"):
         env_options("bogus")
+
+
+def test_an_arm_resumes_only_under_the_config_it_was_trained_with(tmp_path):
+    """The 100k study's own config.json (saved before the env options existed, so it reads as
+    the reduced env it ran on) resumes under --env-set reduced and at more steps; under hb the
+    resume is refused, naming each changed option."""
+    import shutil
+    from pathlib import Path
+
+    from experiments.paper.common import check_resume_config
+
+    saved = Path(__file__).parent.parent / "docs/results/sit_simple_study/study/tdmpc2/config.json"
+    shutil.copy(saved, tmp_path / "config.json")
+    check_resume_config(tmp_path, config("e4-utd1", 0.0, 100_000, 10_000), "arm")
+    longer = config("e4-utd1", 0.0, 100_000, 10_000)
+    longer = dataclasses.replace(longer, train=dataclasses.replace(longer.train, steps=200_000))
+    check_resume_config(tmp_path, longer, "arm")
+    with pytest.raises(SystemExit) as e:
+        check_resume_config(tmp_path, config("e4-utd1", 0.0, 100_000, 10_000, "hb"), "arm")
+    msg = str(e.value)
+    for part in ("train.contact_set 'reduced' -> 'hb'", "train.hand_floor 'none' -> 'all'",
+                 "train.contact_budget 0 -> -1"):  # fmt: skip
+        assert part in msg, msg
+    with pytest.raises(SystemExit, match=r"agent.sirl.beta 0.0 -> 1.0"):
+        check_resume_config(tmp_path, config("e4-utd1", 1.0, 100_000, 10_000), "arm")

@@ -31,7 +31,7 @@ from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.run.host_memory import trim_host_heap
 from sirl_jax.run.reference import paper_2m, paper_hours
-from sirl_jax.run.runlog import CsvLog
+from sirl_jax.run.runlog import CsvLog, RunDirError, load_config
 from sirl_jax.run.states import commit
 from sirl_jax.sharding import SEEDS, make_mesh, place, seed_shardings, sharded_step
 from sirl_jax.train import make_train
@@ -83,6 +83,39 @@ def arm_env(config: Config):
     return load(config.train.task, **config.train.env_options)[1]
 
 
+def _flat(tree: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+RESUME_MAY_CHANGE = ("train.steps",)
+"""Fields a resumed arm may change: extending the run. Anything else (the env options, the
+agent, the buffer) would continue the checkpoint's seeds under another config."""
+
+
+def check_resume_config(out: Path, config: Config, label: str) -> None:
+    """Exits naming every field where `config` differs from the config `out` was trained with
+    (its config.json; one saved before the env options existed reads as the env it ran on,
+    `runlog.load_config`), but for `RESUME_MAY_CHANGE`."""
+    try:
+        saved = load_config(out)
+    except RunDirError as e:
+        raise SystemExit(f"error: {label}: cannot resume {out}: {e}") from None
+    old = _flat(json.loads(json.dumps(dataclasses.asdict(saved))))
+    new = _flat(json.loads(json.dumps(dataclasses.asdict(config))))
+    diff = [f"{k} {old.get(k)!r} -> {new.get(k)!r}" for k in sorted(old.keys() | new.keys())
+            if old.get(k) != new.get(k) and k not in RESUME_MAY_CHANGE]  # fmt: skip
+    if diff:
+        raise SystemExit(f"error: {label}: {out} holds checkpoints of another config "
+                         f"({'; '.join(diff)}); resume it with its own settings or start the "
+                         "arm in a new results folder")  # fmt: skip
+
+
 def run_arm(config: Config, seeds: int, out: Path, label: str,
             max_chunks: int | None = None, budget_cpu_s: float | None = None) -> dict:  # fmt: skip
     """Trains `seeds` seeds of `config` vmapped, resumably; returns done.json's summary.
@@ -96,6 +129,9 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
     if (out / "done.json").exists():
         return json.loads((out / "done.json").read_text())
     tc = config.train
+    ckpt = Checkpointer(out / "checkpoints", max_to_keep=2)
+    if ckpt.latest_step() is not None:
+        check_resume_config(out, config, label)
     train = make_train(config, arm_env(config))
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(dataclasses.asdict(config), indent=1))
@@ -108,7 +144,6 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
     evaluate = jax.jit(jax.vmap(train.evaluate))
     eval_keys = jax.vmap(lambda k: jax.random.fold_in(k, 0x6576616C))(keys)
     train_csv, eval_csv = CsvLog(out / "train.csv"), CsvLog(out / "eval.csv")
-    ckpt = Checkpointer(out / "checkpoints", max_to_keep=2)
     start, wall0, cpu0 = time.perf_counter(), 0.0, 0.0
     eval_cpu = 0.0  # process CPU time spent in evaluations this call, excluded from cpu_s
     if ckpt.latest_step() is not None:
