@@ -115,3 +115,16 @@ def test_parallel_learner_config_is_the_fasttd3_cpu_preset_at_beta():
         assert cfg.train.task == "h1hand-sit_simple-v0" and cfg.train.steps == 200_000
         assert (cfg.train.eval_every, cfg.train.eval_episodes) == (10_000, 4)
         assert cfg.train.num_envs == preset.train.num_envs
+
+
+def test_the_figure_names_the_env_each_study_ran_on(tmp_path):
+    """The 100k study's config.json (saved before the env options existed) reads as the reduced
+    contacts it ran on; the 200k run's as HumanoidBench's; a folder without one gets no label."""
+    from pathlib import Path
+
+    from experiments.studies.sit_simple_report import env_label
+
+    committed = Path(__file__).parent.parent / "docs/results/sit_simple_study"
+    assert env_label(committed / "study" / "tdmpc2") == " (reduced contacts)"
+    assert env_label(committed / "study200k" / "tdmpc2") == " (HumanoidBench's contacts)"
+    assert env_label(tmp_path) == ""

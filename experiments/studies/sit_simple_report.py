@@ -64,6 +64,19 @@ def summarize(results: Path) -> dict:
             "wall_clock_s": wall}  # fmt: skip
 
 
+def env_label(arm_dir: Path) -> str:
+    """" (HumanoidBench's contacts)" or " (reduced contacts)" from the arm's config.json (an
+    old one reads as the env it ran on, `runlog.load_config`); "" without one."""
+    from sirl_jax.run.runlog import RunDirError, load_config
+
+    try:
+        t = load_config(arm_dir).train
+    except RunDirError:
+        return ""
+    hb = (t.contact_set, t.hand_floor) == ("hb", "all")
+    return " (HumanoidBench's contacts)" if hb else " (reduced contacts)"
+
+
 def figure(results: Path, summary: dict, out: Path) -> None:
     import matplotlib
 
@@ -102,7 +115,8 @@ def figure(results: Path, summary: dict, out: Path) -> None:
     ax.axhline(bar, color="k", lw=0.8, label=f"10x random ({bar:.0f})")
     ax.set_xlabel("env steps per seed")
     ax.set_ylabel("eval return (planner, eval mode)")
-    ax.set_title(f"{TASK}: eval return against env steps")
+    ax.set_title(f"{TASK}{env_label(results / 'study' / 'tdmpc2')}: eval return against env steps",
+                 fontsize=10)  # fmt: skip
     ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
