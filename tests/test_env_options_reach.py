@@ -92,8 +92,9 @@ def test_an_arm_resumes_only_under_the_config_it_was_trained_with(tmp_path):
     with pytest.raises(SystemExit) as e:
         check_resume_config(tmp_path, config("e4-utd1", 0.0, 100_000, 10_000, "hb"), "arm")
     msg = str(e.value)
-    for part in ("train.contact_set 'reduced' -> 'hb'", "train.hand_floor 'none' -> 'all'",
-                 "train.contact_budget 0 -> -1"):  # fmt: skip
+    for part in ("train.contact_set (saved 'reduced', given 'hb')",
+                 "train.hand_floor (saved 'none', given 'all')",
+                 "train.contact_budget (saved 0, given -1)"):  # fmt: skip
         assert part in msg, msg
-    with pytest.raises(SystemExit, match=r"agent.sirl.beta 0.0 -> 1.0"):
+    with pytest.raises(SystemExit, match=r"agent.sirl.beta \(saved 0.0, given 1.0\)"):
         check_resume_config(tmp_path, config("e4-utd1", 1.0, 100_000, 10_000), "arm")

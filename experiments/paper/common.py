@@ -29,6 +29,7 @@ from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import load
 from sirl_jax.run.checkpoint import Checkpointer
 from sirl_jax.run.compile_cache import enable_compilation_cache
+from sirl_jax.run.config_rules import check_resume
 from sirl_jax.run.host_memory import trim_host_heap
 from sirl_jax.run.reference import paper_2m, paper_hours
 from sirl_jax.run.runlog import CsvLog, RunDirError, load_config
@@ -83,37 +84,15 @@ def arm_env(config: Config):
     return load(config.train.task, **config.train.env_options)[1]
 
 
-def _flat(tree: dict, prefix: str = "") -> dict:
-    out = {}
-    for k, v in tree.items():
-        if isinstance(v, dict):
-            out.update(_flat(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
-
-
-RESUME_MAY_CHANGE = ("train.steps",)
-"""Fields a resumed arm may change: extending the run. Anything else (the env options, the
-agent, the buffer) would continue the checkpoint's seeds under another config."""
-
-
 def check_resume_config(out: Path, config: Config, label: str) -> None:
-    """Exits naming every field where `config` differs from the config `out` was trained with
-    (its config.json; one saved before the env options existed reads as the env it ran on,
-    `runlog.load_config`), but for `RESUME_MAY_CHANGE`."""
+    """Exits unless `config` may resume the arm trained in `out` under the CLI's rule
+    (`config_rules.check_resume`: only `RESUME_MUTABLE` fields may change, the replay capacity
+    may not), naming each changed field. The saved config is `out`'s config.json; one saved
+    before the env options existed reads as the env it ran on (`runlog.load_config`)."""
     try:
-        saved = load_config(out)
-    except RunDirError as e:
+        check_resume(load_config(out), config)
+    except (RunDirError, ValueError) as e:
         raise SystemExit(f"error: {label}: cannot resume {out}: {e}") from None
-    old = _flat(json.loads(json.dumps(dataclasses.asdict(saved))))
-    new = _flat(json.loads(json.dumps(dataclasses.asdict(config))))
-    diff = [f"{k} {old.get(k)!r} -> {new.get(k)!r}" for k in sorted(old.keys() | new.keys())
-            if old.get(k) != new.get(k) and k not in RESUME_MAY_CHANGE]  # fmt: skip
-    if diff:
-        raise SystemExit(f"error: {label}: {out} holds checkpoints of another config "
-                         f"({'; '.join(diff)}); resume it with its own settings or start the "
-                         "arm in a new results folder")  # fmt: skip
 
 
 def run_arm(config: Config, seeds: int, out: Path, label: str,
