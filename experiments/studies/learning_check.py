@@ -21,7 +21,7 @@ import jax
 import numpy as np
 import tyro
 
-from sirl_jax.envs import load
+from experiments.paper.common import arm_env
 from sirl_jax.presets import get_preset
 from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.train import make_train
@@ -93,7 +93,7 @@ def main(args: Args) -> None:
         sirl = dataclasses.replace(cfg.agent.sirl, beta=args.beta)
         cfg = dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, sirl=sirl))
     tc = cfg.train
-    env = load(tc.task, **tc.env_options)[1]
+    env = arm_env(cfg)
     train = make_train(cfg, env)
     print(train.buffer.describe())
     print(f"seed_steps={train.seed_steps} pretrain_updates={train.pretrain_updates}")

@@ -64,17 +64,26 @@ def summarize(results: Path) -> dict:
             "wall_clock_s": wall}  # fmt: skip
 
 
+ENV_LABELS = {"hb": "HumanoidBench's contacts", "reduced": "reduced contacts"}
+"""The figure's name for each of the study's env sets (`sit_simple.ENV_SETS`)."""
+
+
 def env_label(arm_dir: Path) -> str:
-    """" (HumanoidBench's contacts)" or " (reduced contacts)" from the arm's config.json (an
-    old one reads as the env it ran on, `runlog.load_config`); "" without one."""
+    """" (<name>)" of the env set whose options the arm's config.json has (an old one reads as
+    the env it ran on, `runlog.load_config`), the options themselves if none matches, "" without
+    a config.json."""
+    from experiments.studies.sit_simple import ENV_SETS
+    from sirl_jax.config import TrainConfig
     from sirl_jax.run.runlog import RunDirError, load_config
 
     try:
-        t = load_config(arm_dir).train
+        options = load_config(arm_dir).train.env_options
     except RunDirError:
         return ""
-    hb = (t.contact_set, t.hand_floor) == ("hb", "all")
-    return " (HumanoidBench's contacts)" if hb else " (reduced contacts)"
+    for name, label in ENV_LABELS.items():
+        if options == TrainConfig(task=TASK, **ENV_SETS[name]).env_options:
+            return f" ({label})"
+    return " (" + ", ".join(f"{k}={v}" for k, v in options.items()) + ")"
 
 
 def figure(results: Path, summary: dict, out: Path) -> None:
