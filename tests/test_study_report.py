@@ -128,3 +128,38 @@ def test_the_figure_names_the_env_each_study_ran_on(tmp_path):
     assert env_label(committed / "study" / "tdmpc2") == " (reduced contacts)"
     assert env_label(committed / "study200k" / "tdmpc2") == " (HumanoidBench's contacts)"
     assert env_label(tmp_path) == ""
+
+
+def test_video_report_chooses_headless_gl_before_mujoco_is_imported(tmp_path):
+    """`--video` renders with MuJoCo, which reads MUJOCO_GL once, at import; the figure's env
+    label imports MuJoCo first, so the report must choose the backend before anything else.
+    Run in a fresh interpreter (this one has MuJoCo imported already) with MUJOCO_GL unset; an
+    import hook records MUJOCO_GL at MuJoCo's first import."""
+    import os
+    import subprocess
+    import sys
+
+    _arm(tmp_path, "tdmpc2", [100.0, 120.0, 80.0], 5000.0)
+    _arm(tmp_path, "tdmpbc", [150.0, 90.0, 110.0], 5200.0)
+    (tmp_path / "random.json").write_text(json.dumps({"mean": 9.5, "episodes": 64}))
+    script = f"""
+import importlib.abc, os, sys
+seen = []
+class Hook(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name == "mujoco" and not seen:
+            seen.append(os.environ.get("MUJOCO_GL"))
+        return None
+sys.meta_path.insert(0, Hook())
+import experiments.studies.sit_simple_report as r
+r.video = lambda *a: __import__("mujoco")  # the real one renders from a checkpoint
+r.main(r.Args(results={str(tmp_path)!r}, out={str(tmp_path / "out")!r}, video=True))
+print("MUJOCO_GL at import:", seen)
+"""
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    done = subprocess.run([sys.executable, "-c", script], cwd=root, env=env, capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    line = done.stdout.strip().splitlines()[-1]
+    assert line in ("MUJOCO_GL at import: ['osmesa']", "MUJOCO_GL at import: ['egl']"), line

@@ -198,6 +198,10 @@ class Args:
 
 
 def main(args: Args) -> None:
+    if args.video:  # MuJoCo reads MUJOCO_GL at import, and the figure's env label imports it
+        from sirl_jax.run.render import select_gl
+
+        select_gl()
     results, out = Path(args.results), Path(args.out)
     summary = summarize(results)
     out.mkdir(parents=True, exist_ok=True)
