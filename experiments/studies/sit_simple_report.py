@@ -155,10 +155,8 @@ def best_seed(results: Path) -> tuple[str, int, int, float]:
 
 def video(results: Path, out: Path, width: int, height: int) -> dict:
     """Renders one episode of the best seed (`best_seed`) to `out`: the vmapped train state of
-    its arm is restored, and that seed's agent state is sliced out."""
-    from sirl_jax.run.render import select_gl
-
-    select_gl()
+    its arm is restored, and that seed's agent state is sliced out. `main` has chosen the
+    headless GL backend (`select_gl`) before anything imported MuJoCo."""
     import jax
 
     from sirl_jax.run.checkpoint import Checkpointer
@@ -198,7 +196,7 @@ class Args:
 
 
 def main(args: Args) -> None:
-    if args.video:  # MuJoCo reads MUJOCO_GL at import, and the figure's env label imports it
+    if args.video:  # MuJoCo reads MUJOCO_GL once, at import (the figure's env label imports it)
         from sirl_jax.run.render import select_gl
 
         select_gl()
