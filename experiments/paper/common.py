@@ -96,19 +96,21 @@ def check_resume_config(out: Path, config: Config, label: str) -> None:
 
 
 def run_arm(config: Config, seeds: int, out: Path, label: str,
-            max_chunks: int | None = None, budget_cpu_s: float | None = None) -> dict:  # fmt: skip
+            max_chunks: int | None = None, budget_cpu_s: float | None = None,
+            keep: int | None = 2) -> dict:  # fmt: skip
     """Trains `seeds` seeds of `config` vmapped, resumably; returns done.json's summary.
 
     max_chunks: stop after this many chunks of this call (a timing probe); nothing is marked
     done then. budget_cpu_s: stop (evaluated, checkpointed and done) once the training chunks
     have used this much process CPU time (all threads, evaluations excluded): the unit a
-    config's learning is compared in when other work shares the machine.
+    config's learning is compared in when other work shares the machine. keep: the newest
+    checkpoints kept (None: every evaluation's, for a probe of consecutive checkpoints).
     """
     enable_compilation_cache()
     if (out / "done.json").exists():
         return json.loads((out / "done.json").read_text())
     tc = config.train
-    ckpt = Checkpointer(out / "checkpoints", max_to_keep=2)
+    ckpt = Checkpointer(out / "checkpoints", max_to_keep=keep)
     if ckpt.latest_step() is not None:
         check_resume_config(out, config, label)
     train = make_train(config, arm_env(config))
@@ -160,6 +162,8 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
             "planner_length": _finite(ev["eval/planner_length"][s], 2),
             "policy_return": _finite(ev["eval/policy_return"][s]),
             "policy_length": float(ev["eval/policy_length"][s]),
+            "policy_return_std": _finite(ev["eval/policy_return_std"][s]),
+            "policy_success": _finite(ev["eval/policy_success"][s]),
             "r_max": _finite(ev["eval/r_max"][s]), "cpu_s": round(train_cpu(), 1),
         } for s in range(seeds)])  # fmt: skip
         eval_cpu += time.process_time() - c0

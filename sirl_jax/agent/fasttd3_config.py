@@ -66,6 +66,11 @@ class FastTD3Config:
     sirl_scale_tau: float = 0.01
     """Rate of the running Q scale S that puts the self-imitative term on TDMPBC's footing:
     the actor loss is -Q + sg(S) * omega * BC, i.e. S times TDMPBC's -Q/S + omega * BC."""
+    actor_ema: float = 0.0
+    """A departure from FastTD3, off at 0: the Polyak rate of an averaged copy of the actor,
+    stepped after every actor update. That copy acts (with the exploration noise), is
+    evaluated and is exported; the trained actor still gives the critics' target actions.
+    In FastTD3 the trained actor acts itself (0). docs/agent.md gives the pilot's numbers."""
 
     def __post_init__(self) -> None:
         for name in ("actor_hidden_dim", "critic_hidden_dim"):
@@ -78,6 +83,8 @@ class FastTD3Config:
         check(self.v_min < self.v_max, "fasttd3.v_min", self.v_min, f"< v_max ({self.v_max})")
         check(0 < self.gamma <= 1, "fasttd3.gamma", self.gamma, "in (0, 1]")
         check(0 < self.tau <= 1, "fasttd3.tau", self.tau, "in (0, 1]")
+        check(0 <= self.actor_ema <= 1, "fasttd3.actor_ema", self.actor_ema,
+              "in [0, 1] (0: no averaged actor)")  # fmt: skip
         check(0 < self.sirl_scale_tau <= 1, "fasttd3.sirl_scale_tau", self.sirl_scale_tau,
               "in (0, 1]")  # fmt: skip
         for name in ("actor_lr", "critic_lr", "init_scale", "obs_norm_eps"):

@@ -140,9 +140,10 @@ class Checkpointer:
     uses the env-step counter.
     """
 
-    def __init__(self, directory: str | os.PathLike, max_to_keep: int = 3):
-        if max_to_keep < 1:
-            raise ValueError(f"max_to_keep must be >= 1, got {max_to_keep}")
+    def __init__(self, directory: str | os.PathLike, max_to_keep: int | None = 3):
+        if max_to_keep is not None and max_to_keep < 1:
+            raise ValueError(f"max_to_keep={max_to_keep!r} is invalid; allowed: an int >= 1, "
+                             "or None to keep every checkpoint")  # fmt: skip
         self.directory = Path(directory).absolute()
         options = ocp.CheckpointManagerOptions(
             max_to_keep=max_to_keep, enable_async_checkpointing=False, create=True
