@@ -16,9 +16,13 @@ ones are the contiguous range [ep_head, ep_tail) of that env's table ring. One e
 `add` suffices: an `add` moves the write position by at most 2 and recorded episodes are at least
 H + 2 >= 3 entries apart. M = L // (H + 2) + 1 bounds the number of live recorded episodes.
 
-Sampling is TD-MPC2's `SliceSampler`: the episode is drawn uniformly among the live recorded
-episodes of all envs, then the start uniformly among its length - H windows of H + 1 entries.
-A window never crosses an episode boundary and never touches a running episode.
+Sampling (`sampling`): "episode" is TD-MPC2's `SliceSampler`: the episode is drawn uniformly
+among the live recorded episodes of all envs, then the start uniformly among its length - H
+windows of H + 1 entries, so a window of a short episode is drawn more often than one of a long
+episode. "transition" draws uniformly among all windows of all live recorded episodes (an
+episode with probability proportional to its number of windows), as FastTD3's replay draws
+transitions. Either way a window never crosses an episode boundary and never touches a running
+episode.
 
 R (`discount` = 1: undiscounted sum of the episode's rewards; else sum of discount^k r_k) is
 recorded when the episode ends. `r_max`: "in_buffer" is the masked max of R over live table
@@ -42,7 +46,9 @@ from sirl_jax.agent.config import RMAX_MODES
 from sirl_jax.buffer_state import BufferState
 from sirl_jax.types import Batch
 
-__all__ = ["RMAX_MODES", "Buffer", "BufferState", "make_buffer"]
+__all__ = ["RMAX_MODES", "SAMPLINGS", "Buffer", "BufferState", "make_buffer"]
+SAMPLINGS = ("episode", "transition")
+"""`Buffer.sampling`: TD-MPC2's episode-uniform slices, or FastTD3's uniform transitions."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,6 +63,7 @@ class Buffer:
     batch_size: int
     discount: float = 1.0
     rmax_mode: str = "in_buffer"
+    sampling: str = "episode"
 
     @property
     def ring_size(self) -> int:
@@ -81,7 +88,7 @@ class Buffer:
             f"replay buffer: {total:,} entries ({self.num_envs} envs x {self.ring_size:,}), "
             f"{self.nbytes / total:.1f} B/transition, {self.nbytes / 1e9:.3f} GB, "
             f"H={self.horizon}, B={self.batch_size}, R_max={self.rmax_mode}, "
-            f"discount={self.discount}"
+            f"discount={self.discount}, {self.sampling}-uniform sampling"
         )
 
     def init(self) -> BufferState:
@@ -201,13 +208,16 @@ class Buffer:
         e, l, m, h = self.num_envs, self.ring_size, self.table_size, self.horizon
         b = self.batch_size
         key_episode, key_start = jax.random.split(key)
-        count = state.ep_tail - state.ep_head
-        cum = jnp.cumsum(count)
-        u = jax.random.randint(key_episode, (b,), 0, jnp.maximum(cum[-1], 1))
-        env = jnp.minimum(jnp.searchsorted(cum, u, side="right"), e - 1)
-        slot = (state.ep_head[env] + u - (cum[env] - count[env])) % m
-        length = state.ep_length[env, slot]
-        offset = jax.random.randint(key_start, (b,), 0, jnp.maximum(length - h, 1))
+        if self.sampling == "transition":
+            env, slot, offset = self._window_uniform(state, key_episode)
+        else:
+            count = state.ep_tail - state.ep_head
+            cum = jnp.cumsum(count)
+            u = jax.random.randint(key_episode, (b,), 0, jnp.maximum(cum[-1], 1))
+            env = jnp.minimum(jnp.searchsorted(cum, u, side="right"), e - 1)
+            slot = (state.ep_head[env] + u - (cum[env] - count[env])) % m
+            length = state.ep_length[env, slot]
+            offset = jax.random.randint(key_start, (b,), 0, jnp.maximum(length - h, 1))
         pos = state.ep_start[env, slot] + offset
         rows = (pos[None, :] + jnp.arange(h + 1)[:, None]) % l
         envs = jnp.broadcast_to(env[None, :], rows.shape)
@@ -218,6 +228,18 @@ class Buffer:
             terminated=state.terminated[envs[1:], rows[1:]].astype(jnp.float32),
             episode_return=state.ep_return[env, slot],
         )
+
+    def _window_uniform(self, state: BufferState, key: jax.Array):
+        """(env, slot, offset) [B] of windows drawn uniformly among all windows of the live
+        recorded episodes: a slot is live when it lies in its env's [ep_head, ep_tail)."""
+        m, h = self.table_size, self.horizon
+        rel = (jnp.arange(m)[None, :] - state.ep_head[:, None]) % m  # [E, M]
+        live = rel < (state.ep_tail - state.ep_head)[:, None]
+        windows = jnp.where(live, jnp.maximum(state.ep_length - h, 1), 0).reshape(-1)
+        cum = jnp.cumsum(windows)
+        u = jax.random.randint(key, (self.batch_size,), 0, jnp.maximum(cum[-1], 1))
+        flat = jnp.minimum(jnp.searchsorted(cum, u, side="right"), cum.shape[0] - 1)
+        return flat // m, flat % m, u - (cum[flat] - windows[flat])
 
     def can_sample(self, state: BufferState) -> jax.Array:
         """[] bool, at least one live recorded (sampleable) episode."""
@@ -252,6 +274,7 @@ def _live_max(ep_return: jax.Array, ep_head: jax.Array, ep_tail: jax.Array) -> j
 def make_buffer(
     capacity: int, num_envs: int, obs_size: int, action_size: int, horizon: int,
     batch_size: int, *, discount: float = 1.0, rmax_mode: str = "in_buffer",
+    sampling: str = "episode",
 ) -> Buffer:  # fmt: skip
     """Builds a `Buffer`; validates the static configuration.
 
@@ -264,6 +287,7 @@ def make_buffer(
       batch_size: B windows per `sample`.
       discount: 1.0 records the undiscounted return; in (0, 1) the discounted one.
       rmax_mode: "in_buffer" (max R over live episodes) or "all_time" (max over all recorded).
+      sampling: "episode" (TD-MPC2's SliceSampler) or "transition" (FastTD3's), `SAMPLINGS`.
     """
     sizes = {"num_envs": num_envs, "obs_size": obs_size, "action_size": action_size,
              "horizon": horizon, "batch_size": batch_size}  # fmt: skip
@@ -282,6 +306,8 @@ def make_buffer(
         raise ValueError(f"make_buffer: discount must be in (0, 1], got {discount!r}")
     if rmax_mode not in RMAX_MODES:
         raise ValueError(f"make_buffer: rmax_mode must be one of {RMAX_MODES}, got {rmax_mode!r}")
-    return Buffer(
-        capacity, num_envs, obs_size, action_size, horizon, batch_size, float(discount), rmax_mode
-    )
+    if sampling not in SAMPLINGS:
+        raise ValueError(f"make_buffer: sampling={sampling!r} is invalid; allowed: "
+                         f"{', '.join(SAMPLINGS)}")  # fmt: skip
+    return Buffer(capacity, num_envs, obs_size, action_size, horizon, batch_size,
+                  float(discount), rmax_mode, sampling)  # fmt: skip

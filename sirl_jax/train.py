@@ -220,8 +220,9 @@ def make_train(config: Config, env: Env, *,
     o, a = env.observation_size, env.action_size
     agent = make_agent(ac, o, a, env.episode_length, env.success_bar)
     discount = agent.discount if ac.sirl.return_kind == "discounted" else 1.0
+    sampling = ac.fasttd3.replay_sampling if ac.kind == "fasttd3" else "episode"
     buffer = make_buffer(tc.capacity, e, o, a, ac.window, ac.sample_size, discount=discount,
-                         rmax_mode=ac.sirl.rmax_mode)  # fmt: skip
+                         rmax_mode=ac.sirl.rmax_mode, sampling=sampling)  # fmt: skip
     tdmpc2 = ac.kind == "tdmpc2"  # FastTD3 has no pretraining and its own update rate
     schedule = dict(
         updates_per_step=e * tc.utd if tdmpc2 else ac.fasttd3.updates_per_step,

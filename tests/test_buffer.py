@@ -132,11 +132,12 @@ class RefBuffer:
 TRACES = []
 
 
-def make_fns(discount=1.0, rmax_mode="in_buffer"):
-    buf = make_buffer(E * RING, E, O, A, H, B, discount=discount, rmax_mode=rmax_mode)
+def make_fns(discount=1.0, rmax_mode="in_buffer", sampling="episode"):
+    buf = make_buffer(E * RING, E, O, A, H, B, discount=discount, rmax_mode=rmax_mode,
+                      sampling=sampling)  # fmt: skip
 
     def run_chunk(state, data):
-        TRACES.append(rmax_mode)
+        TRACES.append(rmax_mode if sampling == "episode" else sampling)
 
         def body(s, x):
             return buf.add(s, *x), None
@@ -156,6 +157,11 @@ def fns_in_buffer():
 @pytest.fixture(scope="module")
 def fns_all_time_discounted():
     return make_fns(discount=0.9, rmax_mode="all_time")
+
+
+@pytest.fixture(scope="module")
+def fns_transition():
+    return make_fns(sampling="transition")
 
 
 def random_length(e, rng):
@@ -239,10 +245,20 @@ def test_matches_reference_all_time_discounted(fns_all_time_discounted):
     assert any(a < b for a, b in history)
 
 
+@pytest.mark.timeout(180)
+def test_transition_sampling_draws_valid_windows(fns_transition):
+    """FastTD3's sampling: every window within one live recorded episode, as the reference."""
+    run_against_reference(fns_transition, 1.0, "in_buffer", seed=0)
+    assert TRACES.count("transition") == 1, "run_chunk retraced"
+
+
 @pytest.mark.timeout(120)
-def test_episode_uniform_sampling(fns_in_buffer):
-    """Episodes drawn uniformly whatever their length; starts uniform within an episode."""
-    buf, run_chunk, sample = fns_in_buffer
+@pytest.mark.parametrize("sampling", ["episode", "transition"])
+def test_episode_or_transition_uniform_sampling(fns_in_buffer, fns_transition, sampling):
+    """episode: episodes drawn uniformly whatever their length, starts uniform within one;
+    transition: every window of every live episode equally likely (an episode in proportion
+    to its T + 1 - H windows)."""
+    buf, run_chunk, sample = fns_in_buffer if sampling == "episode" else fns_transition
     cycles = {0: [4, 12], 1: [5, 8], 2: [3, 20]}
     counters = collections.Counter()
 
@@ -269,8 +285,15 @@ def test_episode_uniform_sampling(fns_in_buffer):
         by_start.update(zip(*obs[:, 1:3].astype(int).T.tolist(), strict=True))
     assert set(by_episode) == set(live)
     counts = np.array([by_episode[ep] for ep in live])
-    chi2 = np.sum((counts - counts.mean()) ** 2 / counts.mean())
-    assert chi2 < stats.chi2.ppf(0.999, len(live) - 1), (counts, chi2)
+    windows = np.array([episodes[ep].length + 1 - H for ep in live], float)
+    share = np.full(len(live), 1 / len(live)) if sampling == "episode" else windows / windows.sum()
+    expected = counts.sum() * share
+    chi2 = np.sum((counts - expected) ** 2 / expected)
+    assert chi2 < stats.chi2.ppf(0.999, len(live) - 1), (counts, expected, chi2)
+    # The two laws differ measurably here: each one's counts are far from the other's.
+    uniform = np.full(len(live), 1 / len(live))
+    wrong = counts.sum() * (windows / windows.sum() if sampling == "episode" else uniform)
+    assert np.sum((counts - wrong) ** 2 / wrong) > stats.chi2.ppf(0.999999, len(live) - 1)
     # Pooled over episodes: each of the T + 1 - H starts equally likely.
     chi2, dof = 0.0, 0
     for ep in live:

@@ -202,3 +202,34 @@ def test_zero_size_leaves_round_trip(tmp_path):
     back = ckpt.restore({"state": jax.eval_shape(lambda: tree)})["state"]
     assert back["act"].shape == (2, 0)
     np.testing.assert_array_equal(back["qpos"], np.arange(4.0))
+
+
+@pytest.mark.timeout(60)
+def test_rotation_keeps_the_best_past_max_to_keep(tmp_path):
+    ckpt = Checkpointer(tmp_path / "ck", max_to_keep=2)
+    assert ckpt.best() is None
+    with pytest.raises(CheckpointError, match="cannot mark env step 1 best: no checkpoint"):
+        ckpt.mark_best(1, 5.0, "eval/policy_return")
+    _save(ckpt, _state(1), 1)
+    ckpt.mark_best(1, 5.0, "eval/policy_return")
+    for step in (2, 3, 4):
+        _save(ckpt, _state(step), step)
+    assert ckpt.steps() == [1, 3, 4]  # the newest two and the best
+    assert ckpt.best() == {"step": 1, "value": 5.0, "metric": "eval/policy_return"}
+    ckpt.mark_best(3, 9.0, "eval/policy_return")  # the old best is rotated out at once
+    assert ckpt.steps() == [3, 4]
+    _save(ckpt, _state(5), 5)
+    assert ckpt.steps() == [3, 4, 5]
+    _save(ckpt, _state(6), 6)
+    assert ckpt.steps() == [3, 5, 6]
+    # A reader sees the same record; a best set aside as damaged is no longer named.
+    assert Checkpointer(tmp_path / "ck").best()["step"] == 3
+    ckpt.set_aside(3)
+    assert ckpt.best() is None
+    # None keeps every checkpoint.
+    every = Checkpointer(tmp_path / "all", max_to_keep=None)
+    for step in (1, 2, 3, 4):
+        _save(every, _state(step), step)
+    assert every.steps() == [1, 2, 3, 4]
+    with pytest.raises(ValueError, match="max_to_keep=0 is invalid; allowed: an int >= 1"):
+        Checkpointer(tmp_path / "bad", max_to_keep=0)

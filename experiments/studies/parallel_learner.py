@@ -43,8 +43,11 @@ ARMS = {"beta0": 0.0, "beta1": 1.0}
 
 def config(beta: float, steps: int, num_envs: int = 32) -> Config:
     """The `fasttd3-cpu` preset at `beta`, `steps` env steps per seed, 4 eval episodes every
-    10k, replay holding the whole run."""
+    10k, replay holding the whole run, drawn episode-uniformly: the study ran before
+    `fasttd3.replay_sampling` existed, when FastTD3 shared TD-MPC2's sampling."""
     cfg = get_preset("fasttd3-cpu")
+    fasttd3 = dataclasses.replace(cfg.agent.fasttd3, replay_sampling="episode")
+    cfg = dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, fasttd3=fasttd3))
     sirl = dataclasses.replace(cfg.agent.sirl, beta=beta)
     train = dataclasses.replace(cfg.train, task=TASK, steps=steps, num_envs=num_envs,
                                 buffer_size=steps, eval_every=10_000, eval_episodes=4,

@@ -30,10 +30,13 @@ from sirl_jax.config import Config
 
 BAR = 750.0
 RECIPES: dict[str, dict] = {
-    "base": {},  # FastTD3's recipe at the fasttd3-cpu sizes
-    "ema": {"actor_ema": 0.005},  # an averaged actor acts and is evaluated (~200 updates)
-    "actor_lr": {"actor_lr": 1e-4},  # a third of FastTD3's actor learning rate
-    "pf4": {"policy_frequency": 4},  # 4 critic updates per actor update (FastTD3: 2)
+    # the recipe of the parallel-learner study: episode-uniform replay (TD-MPC2's sampler)
+    "base": {"replay_sampling": "episode"},
+    # an averaged actor acts and is evaluated (rate 0.005: about 200 actor updates)
+    "ema": {"replay_sampling": "episode", "actor_ema": 0.005},
+    # FastTD3's transition-uniform replay (the fasttd3 default since the diagnosis)
+    "transition": {"replay_sampling": "transition"},
+    "transition_ema": {"replay_sampling": "transition", "actor_ema": 0.005},
 }
 """The pilot's candidates: `fasttd3` field overrides of the fasttd3-cpu preset."""
 

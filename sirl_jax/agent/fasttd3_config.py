@@ -66,6 +66,12 @@ class FastTD3Config:
     sirl_scale_tau: float = 0.01
     """Rate of the running Q scale S that puts the self-imitative term on TDMPBC's footing:
     the actor loss is -Q + sg(S) * omega * BC, i.e. S times TDMPBC's -Q/S + omega * BC."""
+    replay_sampling: str = "transition"
+    """How the replay draws its windows (`buffer.SAMPLINGS`): "transition", uniformly among all
+    transitions of the finished episodes, as FastTD3's replay draws; "episode", an episode
+    uniformly and then a window in it (TD-MPC2's SliceSampler: a transition of a 30-step fall
+    is drawn 33x as often as one of a 1,000-step episode). The FastTD3 studies before this
+    field existed ran "episode" (their commands pin it)."""
     actor_ema: float = 0.0
     """A departure from FastTD3, off at 0: the Polyak rate of an averaged copy of the actor,
     stepped after every actor update. That copy acts (with the exploration noise), is
@@ -83,6 +89,8 @@ class FastTD3Config:
         check(self.v_min < self.v_max, "fasttd3.v_min", self.v_min, f"< v_max ({self.v_max})")
         check(0 < self.gamma <= 1, "fasttd3.gamma", self.gamma, "in (0, 1]")
         check(0 < self.tau <= 1, "fasttd3.tau", self.tau, "in (0, 1]")
+        check(self.replay_sampling in ("episode", "transition"), "fasttd3.replay_sampling",
+              self.replay_sampling, "one of episode, transition")  # fmt: skip
         check(0 <= self.actor_ema <= 1, "fasttd3.actor_ema", self.actor_ema,
               "in [0, 1] (0: no averaged actor)")  # fmt: skip
         check(0 < self.sirl_scale_tau <= 1, "fasttd3.sirl_scale_tau", self.sirl_scale_tau,

@@ -6,8 +6,12 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import tyro
+
+from sirl_jax.run.checkpoint_files import read_best
+from sirl_jax.run.errors import UsageError
 
 
 @dataclasses.dataclass(frozen=True)
@@ -19,6 +23,8 @@ class EvalArgs:
     """The run directory."""
     step: int | None = None
     """Evaluate only the checkpoint at this env step."""
+    best: bool = False
+    """Evaluate only the checkpoint that scored best at evaluation in training."""
     episodes: int = 10
     """Episodes per checkpoint, run in parallel (the official TD-MPC2 evaluation: 10)."""
 
@@ -31,6 +37,8 @@ class RenderArgs:
     """The run directory (omit with --random --task NAME)."""
     step: int | None = None
     """The checkpoint (env step); default: the latest."""
+    best: bool = False
+    """The checkpoint that scored best at evaluation in training (instead of --step)."""
     episodes: int = 2
     """Episodes, rolled out in parallel and written one after the other."""
     policy: str = "planner"
@@ -90,6 +98,8 @@ class ExportArgs:
     """The run directory."""
     step: int | None = None
     """The checkpoint (env step); default: the latest."""
+    best: bool = False
+    """The checkpoint that scored best at evaluation in training (instead of --step)."""
     out: str | None = None
     """The export directory (default: RUN_DIR/export-<step>); must not exist."""
     force: bool = False
@@ -117,3 +127,22 @@ class Sim2simArgs:
     """--no-mjx: the CPU MuJoCo side only."""
     json: str | None = None
     """Also write the figures to this JSON file."""
+
+
+def with_best(args):
+    """`args` (eval, render, export) with --best turned into the --step it names: the
+    checkpoint the run recorded as best at evaluation (`checkpoints/best.json`)."""
+    if not args.best:
+        return args
+    if args.step is not None:
+        raise UsageError(f"--best and --step {args.step} each name a checkpoint; give one")
+    if args.run is None:
+        raise UsageError("--best needs a RUN_DIR: it names the run's best checkpoint")
+    best = read_best(Path(args.run) / "checkpoints")
+    if best is None:
+        raise UsageError(f"{args.run} records no best checkpoint (checkpoints/best.json): a "
+                         "run marks one at each evaluation that beats its earlier ones; this "
+                         "one has not evaluated yet, or its best checkpoint is gone")  # fmt: skip
+    print(f"--best: the checkpoint at env step {best['step']:,} ({best['metric']} "
+          f"{best['value']:.4g})")  # fmt: skip
+    return dataclasses.replace(args, step=best["step"])

@@ -13,20 +13,18 @@ damaged checkpoint raises `CheckpointDamaged`; `set_aside` renames it to `<step>
 no longer listed) so a resume can fall back to an older one. `remove_partial_writes` deletes the
 temporary directories a killed writer left (only the single writer of a run may call it).
 
-Nothing here ever deletes a checkpoint except orbax's own `max_to_keep` rotation on save.
+Best: `mark_best(step, value, metric)` records in `<root>/best.json` which checkpoint scored
+best at evaluation; the rotation after each save keeps the newest `max_to_keep` and that one.
+Nothing else here ever deletes a checkpoint.
 """
 
 from __future__ import annotations
 
-import errno
-import itertools
 import json
 import logging
 import os
-import re
 import shutil
 import time
-import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -36,7 +34,19 @@ import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
 
-CHECKSUMS = "sirl_checksums.json"
+from sirl_jax.run.checkpoint_files import (
+    BEST,
+    CHECKSUMS,
+    abstract_leaf,
+    file_crc,
+    first_line,
+    flatten,
+    is_disk_full,
+    layout_change,
+    read_best,
+    scan,
+)
+
 _META = "meta"
 _LAYOUT = "_leaf_names"
 _SHAPES = "_leaf_shapes"
@@ -59,80 +69,6 @@ class CheckpointWriteError(CheckpointError):
     """A save failed (disk full, I/O error); the checkpoints written before are intact."""
 
 
-def _first_line(e: BaseException) -> str:
-    text = str(e).strip()
-    return text.splitlines()[0][:300] if text else type(e).__name__
-
-
-def _is_disk_full(e: BaseException) -> bool:
-    text = str(e)
-    return (getattr(e, "errno", None) == errno.ENOSPC or "No space left on device" in text
-            or "os_error_code='28'" in text)  # fmt: skip
-
-
-def _file_crc(path: Path) -> int:
-    crc = 0
-    with open(path, "rb") as f:
-        while chunk := f.read(1 << 22):
-            crc = zlib.crc32(chunk, crc)
-    return crc
-
-
-def _scan(step_dir: Path) -> dict[str, list[int]]:
-    """{relative path: [size, crc32]} of every file under a step directory."""
-    out = {}
-    for path in sorted(step_dir.rglob("*")):
-        if path.is_file() and path.name != CHECKSUMS:
-            out[str(path.relative_to(step_dir))] = [path.stat().st_size, _file_crc(path)]
-    return out
-
-
-def _flatten(tree: Any) -> tuple[list[str], list[Any], Any]:
-    """Leaf names `0007_agent_params_encoder_0_kernel`, leaves, treedef of a pytree.
-
-    Items are stored as flat {name: array} dicts: orbax cannot store zero-size arrays (MJX
-    data has some) and a flat dict restores into any pytree type, custom nodes included.
-    """
-    path_leaves, treedef = jax.tree_util.tree_flatten_with_path(tree)
-    names = [
-        f"{i:04d}_{re.sub(r'[^A-Za-z0-9_]+', '_', jax.tree_util.keystr(path)).strip('_')}"
-        for i, (path, _) in enumerate(path_leaves)
-    ]
-    return names, [leaf for _, leaf in path_leaves], treedef
-
-
-def _layout_change(saved: list[str], expected: list[str]) -> str:
-    """Names the fields that differ between a saved and an expected leaf layout."""
-    strip = lambda names: [n.split("_", 1)[1] if "_" in n else n for n in names]
-    old, new = strip(saved), strip(expected)
-    gone, added = [n for n in old if n not in new], [n for n in new if n not in old]
-    if gone or added:
-        parts = []
-        if gone:
-            parts.append(f"it has {', '.join(gone[:5])}, which this version no longer stores")
-        if added:
-            parts.append(f"it lacks {', '.join(added[:5])}, which this version needs")
-        return "; ".join(parts)
-    pairs = itertools.zip_longest(saved, expected, fillvalue="(nothing)")
-    diff = next((a, b) for a, b in pairs if a != b)
-    return f"saved {diff[0]!r} where {diff[1]!r} is expected"
-
-
-def _abstract_leaf(x: Any) -> jax.ShapeDtypeStruct:
-    """A ShapeDtypeStruct with a sharding (orbax needs one) for an array or abstract array."""
-    sharding = getattr(x, "sharding", None) or jax.sharding.SingleDeviceSharding(jax.devices()[0])
-    return jax.ShapeDtypeStruct(np.shape(x), x.dtype, sharding=sharding)
-
-
-def complete_steps(directory: Path) -> list[int]:
-    """Steps of the complete checkpoints under `directory` (a `<step>/` holding the checksum
-    file, written last), ascending; read from the directory alone, nothing created."""
-    if not directory.is_dir():
-        return []
-    return sorted(int(p.name) for p in directory.iterdir()
-                  if p.name.isdigit() and (p / CHECKSUMS).is_file())  # fmt: skip
-
-
 class Checkpointer:
     """Saves and restores named pytrees under `directory`, keeping the newest `max_to_keep`.
 
@@ -144,9 +80,9 @@ class Checkpointer:
         if max_to_keep is not None and max_to_keep < 1:
             raise ValueError(f"max_to_keep={max_to_keep!r} is invalid; allowed: an int >= 1, "
                              "or None to keep every checkpoint")  # fmt: skip
-        self.directory = Path(directory).absolute()
-        options = ocp.CheckpointManagerOptions(
-            max_to_keep=max_to_keep, enable_async_checkpointing=False, create=True
+        self.directory, self.max_to_keep = Path(directory).absolute(), max_to_keep
+        options = ocp.CheckpointManagerOptions(  # the rotation is `_rotate`'s, best kept
+            max_to_keep=None, enable_async_checkpointing=False, create=True
         )
         self._manager = ocp.CheckpointManager(self.directory, options=options)
 
@@ -178,7 +114,7 @@ class Checkpointer:
             raise CheckpointError(f"checkpoint {self.step_dir(step)} already exists")
         args, layout, shapes = {}, {}, {}
         for item, tree in items.items():
-            names, leaves, _ = _flatten(tree)
+            names, leaves, _ = flatten(tree)
             layout[item] = names
             shapes[item] = [list(np.shape(x)) for x in leaves]
             flat = {n: leaf for n, leaf in zip(names, leaves, strict=True) if np.size(leaf)}
@@ -193,18 +129,45 @@ class Checkpointer:
         step_dir = self.step_dir(step)
         tmp = step_dir / (CHECKSUMS + ".tmp")
         try:
-            tmp.write_text(json.dumps(_scan(step_dir), indent=0))
+            tmp.write_text(json.dumps(scan(step_dir), indent=0))
             os.replace(tmp, step_dir / CHECKSUMS)
         except OSError as e:
             tmp.unlink(missing_ok=True)
             raise self._write_error(step, " (the checkpoint is complete, its checksums are not)",
                                     e) from e  # fmt: skip
+        self._rotate()
         return step_dir
+
+    def _rotate(self) -> None:
+        """Deletes the complete checkpoints older than the newest `max_to_keep`, except the
+        best one (`best`)."""
+        steps = self.steps()
+        if self.max_to_keep is None or len(steps) <= self.max_to_keep:
+            return
+        best = self.best()
+        keep = set(steps[-self.max_to_keep:]) | ({best["step"]} if best else set())
+        for step in steps:
+            if step not in keep:
+                self._manager.delete(step)
+
+    def mark_best(self, step: int, value: float, metric: str) -> None:
+        """Records checkpoint `step` (which must exist) as the best at evaluation: `metric`
+        scored `value` there. It is kept past `max_to_keep` until another is marked."""
+        if step not in self.steps():
+            raise CheckpointError(f"cannot mark env step {step} best: no checkpoint there")
+        tmp = self.directory / (BEST + ".tmp")
+        tmp.write_text(json.dumps({"step": step, "value": value, "metric": metric}))
+        os.replace(tmp, self.directory / BEST)
+        self._rotate()
+
+    def best(self) -> dict | None:
+        """The checkpoint marked best (`checkpoint_files.read_best`), or None."""
+        return read_best(self.directory)
 
     def _write_error(self, step: int, what: str, e: BaseException) -> CheckpointWriteError:
         earlier = [s for s in self.steps() if s != step]
         kept = f"the newest intact checkpoint is {earlier[-1]}" if earlier else "no earlier one"
-        why = "disk full (ENOSPC)" if _is_disk_full(e) else _first_line(e)
+        why = "disk full (ENOSPC)" if is_disk_full(e) else first_line(e)
         return CheckpointWriteError(
             f"could not write checkpoint {self.step_dir(step)}{what}: {why}; {kept}"
         )
@@ -265,7 +228,7 @@ class Checkpointer:
             path = step_dir / rel
             if not path.is_file():
                 raise CheckpointDamaged(f"checkpoint file {path} is missing")
-            if path.stat().st_size != size or _file_crc(path) != crc:
+            if path.stat().st_size != size or file_crc(path) != crc:
                 raise CheckpointDamaged(f"checkpoint file {path} is damaged (size/CRC32 changed)")
 
     def _read_meta(self, step: int) -> dict:
@@ -275,7 +238,7 @@ class Checkpointer:
             )
         except Exception as e:  # orbax raises json, key and value errors alike
             raise CheckpointDamaged(
-                f"checkpoint {self.step_dir(step)}: metadata unreadable ({_first_line(e)})"
+                f"checkpoint {self.step_dir(step)}: metadata unreadable ({first_line(e)})"
             ) from e
         return dict(restored[_META])
 
@@ -316,12 +279,12 @@ class Checkpointer:
         layout, saved_shapes = meta.pop(_LAYOUT, {}), meta.pop(_SHAPES, {})
         args, flats = {}, {}
         for item, tree in targets.items():
-            names, leaves, treedef = _flatten(tree)
+            names, leaves, treedef = flatten(tree)
             saved = layout.get(item)
             if saved is not None and saved != names:
                 raise CheckpointError(
                     f"checkpoint {step_dir} item {item!r} was saved by other code: "
-                    f"{_layout_change(saved, names)}"
+                    f"{layout_change(saved, names)}"
                 )
             for name, old, x in zip(names, saved_shapes.get(item, []), leaves, strict=False):
                 if tuple(old) != tuple(np.shape(x)):
@@ -332,13 +295,13 @@ class Checkpointer:
                     )
             flats[item] = (names, leaves, treedef)
             args[item] = ocp.args.StandardRestore(
-                {n: _abstract_leaf(x) for n, x in zip(names, leaves, strict=True) if np.size(x)}
+                {n: abstract_leaf(x) for n, x in zip(names, leaves, strict=True) if np.size(x)}
             )
         try:
             restored = self._manager.restore(step, args=ocp.args.Composite(**args))
         except Exception as e:  # orbax/tensorstore raise many types; all mean "unreadable"
             raise CheckpointDamaged(
-                f"checkpoint {step_dir} is unreadable ({type(e).__name__}: {_first_line(e)})"
+                f"checkpoint {step_dir} is unreadable ({type(e).__name__}: {first_line(e)})"
             ) from e
         out: dict[str, Any] = {_META: meta}
         for item, (names, leaves, treedef) in flats.items():

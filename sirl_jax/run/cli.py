@@ -25,7 +25,15 @@ import tyro
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.presets import PRESETS
 from sirl_jax.run import runlog
-from sirl_jax.run.args import EvalArgs, ExportArgs, PlotArgs, RenderArgs, ReportArgs, Sim2simArgs
+from sirl_jax.run.args import (
+    EvalArgs,
+    ExportArgs,
+    PlotArgs,
+    RenderArgs,
+    ReportArgs,
+    Sim2simArgs,
+    with_best,
+)
 from sirl_jax.run.checkpoint import CheckpointError
 from sirl_jax.run.config_rules import check_resume, fit_to_task
 from sirl_jax.run.errors import TrainingFailure, UsageError
@@ -200,6 +208,7 @@ def evaluate(args: EvalArgs) -> int:
 
     if args.episodes < 1:
         raise UsageError(f"--episodes={args.episodes} is invalid; allowed: an int >= 1")
+    args = with_best(args)
     eval_run(Path(args.run), args.step, args.episodes)
     return EXIT_OK
 
@@ -213,7 +222,7 @@ def render(args: RenderArgs) -> int:
         if value is not None and value < 1:
             flag = "--" + name.replace("_", "-")
             raise UsageError(f"{flag}={value} is invalid; allowed: an int >= 1")
-    render_command(args, select_gl())
+    render_command(with_best(args), select_gl())
     return EXIT_OK
 
 
@@ -240,7 +249,7 @@ def export(args: ExportArgs) -> int:
     """The `export` command (`export.export_run`)."""
     from sirl_jax.run.export import main_export
 
-    return main_export(args)
+    return main_export(with_best(args))
 
 
 def sim2sim(args: Sim2simArgs) -> int:

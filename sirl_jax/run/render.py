@@ -214,7 +214,8 @@ def render(run_dir: Path | None, *, task: str | None, step: int | None, episodes
     import jax
 
     from sirl_jax.run import runlog
-    from sirl_jax.run.checkpoint import Checkpointer, complete_steps
+    from sirl_jax.run.checkpoint import Checkpointer
+    from sirl_jax.run.checkpoint_files import complete_steps
     from sirl_jax.run.runner import build, eval_key, load_task
     from sirl_jax.run.states import restore_state
 

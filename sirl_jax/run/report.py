@@ -55,13 +55,22 @@ class Report:
     plot_png: bytes | None = None
     notes: list[str] = field(default_factory=list)  # collapses, missing references/evals
     video: Path | None = None
+    best: dict | None = None  # the checkpoint marked best at evaluation (`read_best`)
 
 
 def checkpoint_steps(run_dir: Path) -> list[int]:
     """Env steps of the run's complete checkpoints, ascending (`checkpoint.complete_steps`)."""
-    from sirl_jax.run.checkpoint import complete_steps
+    from sirl_jax.run.checkpoint_files import complete_steps
+
 
     return complete_steps(run_dir / "checkpoints")
+
+
+def best_checkpoint(run_dir: Path) -> dict | None:
+    """The checkpoint the run marked best at evaluation (`checkpoint_files.read_best`)."""
+    from sirl_jax.run.checkpoint_files import read_best
+
+    return read_best(run_dir / "checkpoints")
 
 
 def _number(value) -> float:
@@ -203,7 +212,7 @@ def gather(run_dir: Path, curves: bool = True) -> Report:
         random_return=_number(random_rows[-1]["eval/random_return"]) if random_rows else None,
         r_max_last=r_max[-1] if r_max else math.nan, r_max_best=max(r_max, default=math.nan),
         counters=run_counters(metrics, evals), cost=cost_text(metrics, starts), starts=starts,
-        video=latest_video(run_dir),
+        video=latest_video(run_dir), best=best_checkpoint(run_dir),
     )  # fmt: skip
     if not evals:
         report.notes.append(f"no evaluations yet: run `python -m sirl_jax eval {run_dir}`")

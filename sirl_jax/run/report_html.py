@@ -60,6 +60,9 @@ def _summary(r: Report) -> str:
                 success = last.get(f"eval/{prefix}_success", math.nan)
                 cls = "ok" if success >= 0.5 else "bad"
                 cards.append(_card(_num(success, ".2f"), f"{name} success rate", cls))
+    if r.best is not None:
+        cards.append(_card(f"{r.best['step']:,}", f"best checkpoint ({r.best['metric']} "
+                           f"{_num(r.best['value'])}; --best)"))  # fmt: skip
     cards.append(_card(_num(r.r_max_last), f"R_max (last; best {_num(r.r_max_best)})"))
     blowups = sum(v for k, v in r.counters.items() if "blow-up" in k)
     cards.append(_card(f"{blowups:g}", "blow-ups (train + eval)", "bad" if blowups else "ok"))

@@ -141,8 +141,10 @@ class Run:
                              f"{env_steps:,}, below half its best {self.best[0]:.4g} (env step "
                              f"{self.best[1]:,})")  # fmt: skip
             self.bar.write(self.collapse)
-        if value > self.best[0]:
+        if value > self.best[0]:  # kept past --keep: eval/render/export --best
             self.best = (value, env_steps)
+            self.saved = self.save(state)
+            self.ckpt.mark_best(env_steps, value, f"eval/{which}_return")
         return metrics
 
     def save(self, state) -> int:
@@ -314,7 +316,9 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
                 print(cost_line(train, state) + hint, flush=True)
             bar = prog.Progress(config.train.steps, int(jax.device_get(state.env_steps)),
                                 enabled=show_progress)  # fmt: skip
-            Run(config, train, ckpt, log, bar, guard, saved, shardings=shardings).loop(state)
+            best = ckpt.best() if saved is not None else None
+            best = (best["value"], best["step"]) if best else (-math.inf, 0)
+            Run(config, train, ckpt, log, bar, guard, saved, best, shardings=shardings).loop(state)
         finally:
             log.close()
     finally:
