@@ -83,9 +83,52 @@ def figure(root: Path, published: Path, out: Path) -> None:
     plt.close(fig)
 
 
+def video(arm_dir: Path, out: Path, frames: int = 6) -> str:
+    """One episode of the beta-1 seed whose final evaluation is best, at its final checkpoint
+    (the vmapped state restored, that seed's agent sliced out), to `out`/best_seed.mp4, and
+    `frames` frames spread over it side by side in `out`/frame_strip.png. `main` chose the
+    headless GL backend before MuJoCo was imported."""
+    import imageio.v2 as imageio
+    import jax
+
+    from sirl_jax.run.checkpoint import Checkpointer
+    from sirl_jax.run.render import render_policy
+    from sirl_jax.run.runlog import load_config
+    from sirl_jax.run.runner import build, eval_key
+
+    curves = eval_curves(arm_dir, "policy_return")
+    seed = max(curves, key=lambda s: curves[s]["return"][-1])
+    config = load_config(arm_dir)
+    spec, train = build(config)
+    keys = jax.random.split(jax.random.PRNGKey(0), len(curves))
+    ckpt = Checkpointer(arm_dir / "checkpoints")
+    try:
+        step = ckpt.latest_step()
+        state = ckpt.restore({"state": jax.eval_shape(jax.vmap(train.init), keys)}, step)
+    finally:
+        ckpt.close()
+    agent_state = jax.tree.map(lambda x: x[seed], state["state"].agent)
+    mp4 = out / "best_seed.mp4"
+    summary = render_policy(train.env, train.agent, agent_state, "prior", 1,
+                            eval_key(seed, step), mp4,
+                            f"{spec.id} beta 1 seed {seed} @ {step:,} steps", width=480,
+                            height=360)  # fmt: skip
+    reader = imageio.get_reader(mp4)
+    shots = [reader.get_data(int(i)) for i in np.linspace(0, summary["frames"] - 1, frames)]
+    imageio.imwrite(out / "frame_strip.png", np.concatenate(shots, axis=1))
+    return (f"seed {seed} at {step:,} steps: this episode {summary['returns'][0]:.1f} over "
+            f"{summary['frames']} frames, {mp4.stat().st_size / 1e6:.2f} MB")
+
+
 def main(recipe: str = "transition", results: Path = Path("results/sit_simple_solved"),
-         out: Path = Path("docs/results/sit_simple_solved")) -> None:  # fmt: skip
-    """Writes `out`/summary.json and `out`/figure.png for `recipe`'s arms under `results`."""
+         out: Path = Path("docs/results/sit_simple_solved"),
+         with_video: bool = False) -> None:  # fmt: skip
+    """Writes `out`/summary.json and `out`/figure.png for `recipe`'s arms under `results`
+    (and with `with_video` the best beta-1 seed's mp4 and frame strip)."""
+    if with_video:  # MuJoCo reads MUJOCO_GL once, at import
+        from sirl_jax.run.render import select_gl
+
+        select_gl()
     root = results / recipe
     if not any((root / arm / "eval.csv").exists() for arm in ARM_LABELS):
         raise SystemExit(f"error: no arm of {root} has an eval.csv yet (run --arm beta1 first)")
@@ -97,6 +140,8 @@ def main(recipe: str = "transition", results: Path = Path("results/sit_simple_so
         print(f"{arm}: final {v['final']} last3 {v['last3_mean']} at {v['final_steps']} steps; "
               f"hours to bar {v['hours_to_bar']}")  # fmt: skip
     print(f"wrote {out / 'summary.json'} and {out / 'figure.png'}")
+    if with_video:
+        print(f"wrote {out / 'best_seed.mp4'}: {video(root / 'beta1', out)}")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""`make_agent`: the TD-MPC2/TDMPBC agent as pure functions over `AgentState` (spec §2.4, §3)."""
+"""`make_tdmpc2`: the TD-MPC2/TDMPBC agent as pure functions over `AgentState` (spec §2.4, §3)."""
 
 from __future__ import annotations
 
@@ -115,21 +115,18 @@ def make_sirl_reference(cfg: AgentConfig, success_bar: float | None) -> Callable
     return sirl_reference
 
 
-def make_agent(
+def make_tdmpc2(
     cfg: AgentConfig,
     obs_size: int,
     action_size: int,
     episode_length: int,
     success_bar: float | None = None,
 ) -> Agent:
-    """Builds the agent for static sizes; gamma, MPPI iterations and G's source are fixed here.
+    """Builds TD-MPC2 (+ TDMPBC) for static sizes; gamma, MPPI iterations and G's source are
+    fixed here (`factory.make_agent` picks it or FastTD3 by `cfg.kind`).
 
     success_bar: the task's R_target; required when `cfg.sirl.g_source == "target"`.
     """
-    if cfg.kind == "fasttd3":
-        from sirl_jax.agent.fasttd3 import make_fasttd3
-
-        return make_fasttd3(cfg, obs_size, action_size, episode_length, success_bar)
     check_sizes(cfg, obs_size, action_size, episode_length, success_bar)
     discount = (
         cfg.discount

@@ -14,50 +14,20 @@ and written by `report_html.to_html`.
 
 from __future__ import annotations
 
-import base64
 import contextlib
 import io
 import math
 import tempfile
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from sirl_jax.run import runlog
 from sirl_jax.run.errors import UsageError
 from sirl_jax.run.progress import format_duration
+from sirl_jax.run.report_data import POLICIES, VIDEO_LIMIT, Report, data_uri
+from sirl_jax.run.report_html import to_html
 
 NEEDS = ("report needs a run directory written by `train`: config.json, metrics.jsonl and "
          "at least one complete checkpoint in checkpoints/")  # fmt: skip
-VIDEO_LIMIT = 64 << 20
-"""Videos larger than this (bytes) are named, not embedded."""
-POLICIES = (("planner", "planner (MPPI)"), ("policy", "policy prior"))
-
-
-@dataclass
-class Report:
-    """The facts of one run, as the page shows them (plain Python values)."""
-
-    run_dir: Path
-    task: str
-    seed: int
-    task_line: str  # the task's id, episode length and success bar, from the registry
-    config: dict  # flattened: "train.steps" -> value
-    checkpoints: list[int]
-    env_steps: int  # the last logged env step
-    eval_source: str
-    eval_rows: list[dict]  # one per env step: env_steps, episodes, eval/<policy>_<stat>
-    random_return: float | None
-    r_max_last: float
-    r_max_best: float
-    counters: dict[str, float]  # blow-ups, overflows, non-finite counts over the whole run
-    cost: str
-    starts: list[dict] = field(default_factory=list)  # versions.json entries
-    plot_png: bytes | None = None
-    notes: list[str] = field(default_factory=list)  # collapses, missing references/evals
-    video: Path | None = None
-    best: dict | None = None  # the checkpoint marked best at evaluation (`read_best`)
-
-
 def checkpoint_steps(run_dir: Path) -> list[int]:
     """Env steps of the run's complete checkpoints, ascending (`checkpoint.complete_steps`)."""
     from sirl_jax.run.checkpoint_files import complete_steps
@@ -222,15 +192,8 @@ def gather(run_dir: Path, curves: bool = True) -> Report:
     return report
 
 
-def data_uri(mime: str, payload: bytes) -> str:
-    """`data:<mime>;base64,...` of the bytes."""
-    return f"data:{mime};base64,{base64.b64encode(payload).decode('ascii')}"
-
-
 def write_report(run_dir: Path, out: Path | None = None) -> Path:
     """Writes the page (default RUN_DIR/report.html); returns its path."""
-    from sirl_jax.run.report_html import to_html
-
     report = gather(run_dir)
     out = out or run_dir / "report.html"
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -240,6 +203,7 @@ def write_report(run_dir: Path, out: Path | None = None) -> Path:
     return out
 
 
-__all__ = ["NEEDS", "Report", "check_run", "checkpoint_steps", "cost_text", "data_uri",
-           "eval_rows", "gather", "latest_video", "run_counters", "task_line",
+__all__ = ["NEEDS", "POLICIES", "VIDEO_LIMIT", "Report", "check_run", "checkpoint_steps",
+           "cost_text", "data_uri", "eval_rows", "gather", "latest_video", "run_counters",
+           "task_line",
            "write_report"]  # fmt: skip

@@ -1,4 +1,4 @@
-"""The HTML of `report`: a `report.Report` as one page, styles inline, media as data URIs.
+"""The HTML of `report`: a `report_data.Report` as one page, styles inline, media as data URIs.
 
 No script, no external reference (fonts, styles, images and video all inside the file), so it
 opens offline in any browser and prints as it shows.
@@ -9,7 +9,7 @@ from __future__ import annotations
 import html
 import math
 
-from sirl_jax.run.report import POLICIES, VIDEO_LIMIT, Report, data_uri
+from sirl_jax.run.report_data import POLICIES, VIDEO_LIMIT, Report, data_uri
 
 _CSS = """
 body{font:14px/1.45 system-ui,-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;color:#1d2330;
