@@ -19,6 +19,7 @@ A pilot run (`experiments.studies.sit_simple_solved --pilot base`) keeps the che
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 import jax
@@ -38,7 +39,9 @@ BAR, EPISODES, BEFORE_FALL = 750.0, 16, 25
 
 
 def make_probe(config, env):
-    """probe(state, states, key) -> per-episode and per-step arrays of one (unbatched) state."""
+    """(probe, actions): probe(state, states, key) -> the per-step arrays of 16 episodes, the
+    replay's figures and the actor's actions on `states`, of one (unbatched) state; actions(
+    state, states) -> those actions alone."""
     fc, A = config.agent.fasttd3, env.action_size
     actor = ReluMLP(widths(fc.actor_hidden_dim), A, fc.init_scale, tanh=True)
     critic = ReluMLP(widths(fc.critic_hidden_dim), fc.num_atoms)
@@ -83,7 +86,7 @@ def make_probe(config, env):
                   "share_omega_half": jnp.sum(n * (live & (omega > 0.5))) / jnp.sum(n)}  # fmt: skip
         return steps, replay, pi(agent, states)
 
-    return jax.jit(probe)
+    return jax.jit(probe), jax.jit(lambda state, states: pi(state.agent, states))
 
 
 def summarize(steps: dict, replay: dict, actions, previous) -> dict:
@@ -115,7 +118,8 @@ def summarize(steps: dict, replay: dict, actions, previous) -> dict:
 
 
 def main(run: Path, out: Path, seed: int = 0) -> None:
-    """Probes every checkpoint of the pilot run `run` (one seed), one CSV row each."""
+    """Probes every checkpoint of the pilot run `run` (one seed), one CSV row each, appended to
+    `out` as it goes; checkpoints already in `out` are skipped (a rerun picks up new ones)."""
     config = load_config(run)
     env = arm_env(config)
     train = make_train(config, env)
@@ -128,9 +132,14 @@ def main(run: Path, out: Path, seed: int = 0) -> None:
     last = jax.tree.map(lambda x: x[0], ckpt.restore(abstract, steps_saved[-1])["state"])
     states = jnp.concatenate([train.buffer.sample(last.buffer, k).obs[0]
                               for k in jax.random.split(jax.random.PRNGKey(seed), 2)])  # fmt: skip
-    probe, rows, previous = make_probe(config, env), [], None
+    rows = list(csv.DictReader(open(out))) if out.exists() else []  # resume: rows kept
+    done = {int(r["env_steps"]) for r in rows}
+    (probe, probe_actions), previous = make_probe(config, env), None
     for step in steps_saved:
         state = jax.tree.map(lambda x: x[0], ckpt.restore(abstract, step)["state"])
+        if step in done:  # its drift row needs the actions, which are cheap to recompute
+            previous = jax.device_get(probe_actions(state, states))
+            continue
         steps, replay, actions = jax.device_get(probe(state, states, jax.random.PRNGKey(seed)))
         rows.append({"env_steps": step, **summarize(steps, replay, actions, previous)})
         previous = actions

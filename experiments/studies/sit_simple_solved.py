@@ -52,33 +52,45 @@ def config(recipe: str, beta: float, steps: int, eval_every: int, episodes: int)
                                train=train)  # fmt: skip
 
 
-def pilot_row(name: str, run_dir: Path, from_steps: int) -> dict:
-    """One recipe's pilot figures: its 16-episode evaluations after `from_steps` env steps."""
-    (c,) = eval_curves(run_dir, "policy_return").values()
-    late = c["return"][c["steps"] >= from_steps]
-    swing = np.abs(np.diff(late)) if late.size > 1 else np.array([np.nan])
-    return {"recipe": name, "evals": int(late.size), "last_steps": int(c["steps"][-1]),
-            "mean": round(float(np.mean(late)), 1), "min": round(float(np.min(late)), 1),
-            "max": round(float(np.max(late)), 1), "at_bar": int(np.sum(late >= BAR)),
-            "swing": round(float(np.mean(swing)), 1), "final": round(float(late[-1]), 1),
-            "first_bar_steps": next((int(s) for s, r in zip(c["steps"], c["return"], strict=True)
-                                     if s > 0 and r >= BAR), None)}  # fmt: skip
+def pilot_rows(results: Path) -> list[dict]:
+    """Each recipe's 16-episode evaluations at equal training CPU: up to the CPU time every
+    recipe's run has reached, the later half of it summarised (mean, min, max, evaluations at
+    the bar, mean change between consecutive evaluations), with the first one at the bar."""
+    curves = {}
+    for name in RECIPES:
+        if (results / name / "eval.csv").exists():
+            (curves[name],) = eval_curves(results / name, "policy_return").values()
+    limit = min(float(c["cpu_h"][-1]) for c in curves.values())
+    rows = []
+    for name, c in curves.items():
+        keep = (c["cpu_h"] <= limit + 1e-9) & (c["steps"] > 0)
+        late = keep & (c["cpu_h"] >= limit / 2)
+        r = c["return"][late]
+        hit = np.flatnonzero(keep & (c["return"] >= BAR))
+        rows.append({
+            "recipe": name, "cpu_h": round(limit, 3), "evals_late": int(late.sum()),
+            "steps_at_limit": int(c["steps"][keep][-1]), "late_mean": round(float(r.mean()), 1),
+            "late_min": round(float(r.min()), 1), "late_max": round(float(r.max()), 1),
+            "late_at_bar": int(np.sum(r >= BAR)),
+            "swing": round(float(np.mean(np.abs(np.diff(r)))), 1) if r.size > 1 else None,
+            "last": round(float(c["return"][keep][-1]), 1),
+            "first_bar_steps": int(c["steps"][hit[0]]) if hit.size else None,
+        })  # fmt: skip
+    return rows
 
 
 def main(pilot: str | None = None, budget_cpu_s: float = 2000.0, arm: str | None = None,
          recipe: str = "base", steps: int = 400_000, pilot_report: bool = False,
-         pilot_from: int = 100_000,
          results: Path = Path("results/sit_simple_solved")) -> None:  # fmt: skip
     """--pilot RECIPE: one seed of RECIPE at beta 1 until `budget_cpu_s` of training CPU;
-    --pilot-report: the pilot's table (evaluations after `pilot_from` steps) as pilot.json;
+    --pilot-report: the pilot's table at equal training CPU (`pilot_rows`) as pilot.json;
     --arm beta0|beta1: the study's 3 seeds of `recipe` for `steps` env steps per seed."""
     if pilot is not None:
         cfg = config(pilot, 1.0, 300_000, eval_every=10_000, episodes=16)
         run_arm(cfg, 1, results / "pilot" / pilot, f"pilot {pilot}",
                 budget_cpu_s=budget_cpu_s, keep=None if pilot == "base" else 2)  # fmt: skip
     elif pilot_report:
-        rows = [pilot_row(n, results / "pilot" / n, pilot_from) for n in RECIPES
-                if (results / "pilot" / n / "eval.csv").exists()]  # fmt: skip
+        rows = pilot_rows(results / "pilot")
         (results / "pilot" / "pilot.json").write_text(json.dumps(rows, indent=1))
         for r in rows:
             print(r)
