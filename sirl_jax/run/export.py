@@ -72,6 +72,14 @@ def planner_fn(agent, agent_state):
     return plan
 
 
+def export_planner(agent, agent_state, obs_size: int, action_size: int, horizon: int):
+    """`planner_fn` as a `jax.export.Exported` for `PLATFORMS` (planner.jax's program)."""
+    f32 = jnp.float32
+    return jax.export.export(jax.jit(planner_fn(agent, agent_state)), platforms=PLATFORMS)(
+        jax.ShapeDtypeStruct((obs_size,), f32), jax.ShapeDtypeStruct((horizon, action_size), f32),
+        jax.ShapeDtypeStruct((2,), jnp.uint32))  # fmt: skip
+
+
 # The checkpoint leaves holding the policy's input and output layers, per learner, and how many
 # outputs each action has (TD-MPC2's prior gives mu and log std).
 _POLICY_LEAVES = {
@@ -162,12 +170,7 @@ def export_run(run_dir: Path, step: int | None, out: Path | None, force: bool) -
             output_names=["action"], return_mode="file",
             output_path=str(out / "policy.onnx"))  # fmt: skip
     if cfg.plans:
-        f32 = jnp.float32
-        exported = jax.export.export(jax.jit(planner_fn(agent, agent_state)),
-                                     platforms=PLATFORMS)(
-            jax.ShapeDtypeStruct((O,), f32), jax.ShapeDtypeStruct((H, A), f32),
-            jax.ShapeDtypeStruct((2,), jnp.uint32))  # fmt: skip
-        (out / "planner.jax").write_bytes(exported.serialize())
+        (out / "planner.jax").write_bytes(export_planner(agent, agent_state, O, A, H).serialize())
     C.write_model(env, out / C.MODEL_FILE)
     config_dict = config_to_dict(config)
     runlog.write_json(out / "config.json", config_dict)
