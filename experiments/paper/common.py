@@ -97,8 +97,11 @@ def check_resume_config(out: Path, config: Config, label: str) -> None:
 
 def run_arm(config: Config, seeds: int, out: Path, label: str,
             max_chunks: int | None = None, budget_cpu_s: float | None = None,
-            keep: int | None = 2) -> dict:  # fmt: skip
+            keep: int | None = 2, only: tuple[int, ...] | None = None) -> dict:  # fmt: skip
     """Trains `seeds` seeds of `config` vmapped, resumably; returns done.json's summary.
+
+    only: train just these seed indices of the `seeds` (each with the key it has in the
+    vmapped run, and its index in the CSVs' seed column), e.g. one seed per process.
 
     max_chunks: stop after this many chunks of this call (a timing probe); nothing is marked
     done then. budget_cpu_s: stop (evaluated, checkpointed and done) once the training chunks
@@ -120,6 +123,11 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
           f"{config.agent.sirl.beta:g}, G {config.agent.sirl.g_source}, {tc.steps:,} steps per "
           f"seed; {train.buffer.describe()}", flush=True)  # fmt: skip
     keys = jax.random.split(jax.random.PRNGKey(0), seeds)
+    ids = tuple(range(seeds)) if only is None else tuple(only)
+    if not ids or min(ids) < 0 or max(ids) >= seeds or len(set(ids)) != len(ids):
+        raise ValueError(f"only={only!r} is invalid; allowed: distinct seed indices in "
+                         f"0..{seeds - 1}")  # fmt: skip
+    keys, seeds = keys[np.asarray(ids)], len(ids)
     init = jax.vmap(train.init)
     step = jax.jit(jax.vmap(train.step), donate_argnums=0)
     evaluate = jax.jit(jax.vmap(train.evaluate))
@@ -157,7 +165,7 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
         for k in ("return", "length"):  # an agent without a planner (FastTD3): empty columns
             ev.setdefault(f"eval/planner_{k}", np.full(seeds, np.nan))
         eval_csv.extend([{
-            "seed": s, "env_steps": env_steps, "wall_s": round(wall, 1),
+            "seed": ids[s], "env_steps": env_steps, "wall_s": round(wall, 1),
             "planner_return": _finite(ev["eval/planner_return"][s]),
             "planner_length": _finite(ev["eval/planner_length"][s], 2),
             "policy_return": _finite(ev["eval/policy_return"][s]),
@@ -189,7 +197,7 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
         if bool(np.all(m["planning"] > 0)):
             timing.append((time.perf_counter(), done))
         train_csv.extend([{
-            "seed": s, "env_steps": done, "wall_s": round(wall, 1),
+            "seed": ids[s], "env_steps": done, "wall_s": round(wall, 1),
             "episode_return": _finite(m["episode/return"][s]),
             "episode_length": _finite(m["episode/length"][s], 1),
             "r_max": _finite(m["r_max"][s]), "updates": int(m["updates"][s]),

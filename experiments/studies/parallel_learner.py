@@ -57,9 +57,12 @@ def config(beta: float, steps: int, num_envs: int = 32) -> Config:
 
 
 def eval_curves(arm_dir: Path, column: str) -> dict[int, dict[str, np.ndarray]]:
-    """{seed: {"steps", "return", "wall_h", "cpu_h"}} of one arm's eval.csv."""
+    """{seed: {"steps", "return", "wall_h", "cpu_h"}} of one arm's eval.csv, or of its
+    seed*/eval.csv where each seed ran as its own process."""
     seeds: dict[int, dict[str, list]] = {}
-    for r in CsvLog(arm_dir / "eval.csv").rows():
+    files = [arm_dir / "eval.csv"] if (arm_dir / "eval.csv").exists() else sorted(
+        arm_dir.glob("seed*/eval.csv"))  # fmt: skip
+    for r in (row for f in files for row in CsvLog(f).rows()):
         d = seeds.setdefault(int(r["seed"]), {"steps": [], "return": [], "wall_h": [],
                                               "cpu_h": []})  # fmt: skip
         d["steps"].append(int(r["env_steps"]))

@@ -4,8 +4,10 @@
     .venv/bin/python -m experiments.studies.sit_simple_solved --pilot base --budget-cpu-s 2000
     .venv/bin/python -m experiments.studies.sit_simple_solved --pilot-report
     # the study: 3 seeds per arm of the chosen recipe, 16 episodes every 20k
-    .venv/bin/python -m experiments.studies.sit_simple_solved --arm beta1 --recipe ema
-    .venv/bin/python -m experiments.studies.sit_simple_solved --arm beta0 --recipe ema
+    .venv/bin/python -m experiments.studies.sit_simple_solved --arm beta1 --recipe transition
+    # or one seed per process (about 1.4 h each on 2 cores; the key it has in the 3-seed run)
+    .venv/bin/python -m experiments.studies.sit_simple_solved --arm beta1 --recipe transition \
+        --seed 0
 
 Every run is the `fasttd3-cpu` preset (32 envs, batch 1024, critic 512, actor 256) on the env
 the parallel-learner study used (`STUDY_ENV`), with one recipe's FastTD3 fields replaced
@@ -29,6 +31,7 @@ from experiments.studies.parallel_learner import eval_curves
 from sirl_jax.config import Config
 
 BAR = 750.0
+SEEDS = 3
 RECIPES: dict[str, dict] = {
     # the recipe of the parallel-learner study: episode-uniform replay (TD-MPC2's sampler)
     "base": {"replay_sampling": "episode"},
@@ -81,10 +84,12 @@ def pilot_rows(results: Path) -> list[dict]:
 
 def main(pilot: str | None = None, budget_cpu_s: float = 2000.0, arm: str | None = None,
          recipe: str = "base", steps: int = 400_000, pilot_report: bool = False,
-         results: Path = Path("results/sit_simple_solved")) -> None:  # fmt: skip
+         results: Path = Path("results/sit_simple_solved"),
+         seed: int | None = None) -> None:  # fmt: skip
     """--pilot RECIPE: one seed of RECIPE at beta 1 until `budget_cpu_s` of training CPU;
     --pilot-report: the pilot's table at equal training CPU (`pilot_rows`) as pilot.json;
-    --arm beta0|beta1: the study's 3 seeds of `recipe` for `steps` env steps per seed."""
+    --arm beta0|beta1: the study's 3 seeds of `recipe` for `steps` env steps per seed, in one
+    program, or with --seed I only seed I (0-2), in RECIPE/ARM/seedI."""
     if pilot is not None:
         cfg = config(pilot, 1.0, 300_000, eval_every=10_000, episodes=16)
         run_arm(cfg, 1, results / "pilot" / pilot, f"pilot {pilot}",
@@ -96,7 +101,13 @@ def main(pilot: str | None = None, budget_cpu_s: float = 2000.0, arm: str | None
             print(r)
     elif arm in ("beta0", "beta1"):
         cfg = config(recipe, float(arm[-1]), steps, eval_every=20_000, episodes=16)
-        run_arm(cfg, 3, results / recipe / arm, f"{recipe} {arm}")
+        if seed is None:
+            run_arm(cfg, SEEDS, results / recipe / arm, f"{recipe} {arm}")
+        elif 0 <= seed < SEEDS:
+            run_arm(cfg, SEEDS, results / recipe / arm / f"seed{seed}",
+                    f"{recipe} {arm} seed {seed}", only=(seed,))  # fmt: skip
+        else:
+            raise SystemExit(f"error: --seed {seed} is invalid; allowed: 0..{SEEDS - 1}")
     else:
         raise SystemExit(f"error: --arm {arm!r} is invalid; allowed: beta0, beta1 (or --pilot "
                          "RECIPE, --pilot-report)")  # fmt: skip

@@ -27,10 +27,15 @@ ARM_LABELS = {"beta0": ("FastTD3 (beta 0)", "tab:green"),
               "beta1": ("FastTD3 + TDMPBC term (beta 1)", "tab:purple")}  # fmt: skip
 
 
+def has_evals(arm_dir: Path) -> bool:
+    """The arm ran: its eval.csv, or one per seed (seed*/eval.csv)."""
+    return (arm_dir / "eval.csv").exists() or any(arm_dir.glob("seed*/eval.csv"))
+
+
 def summarize(root: Path) -> dict:
     arms, steps = {}, []
     for arm in ARM_LABELS:
-        if not (root / arm / "eval.csv").exists():
+        if not has_evals(root / arm):
             continue
         curves = eval_curves(root / arm, "policy_return").values()
         arms[arm] = {
@@ -41,7 +46,7 @@ def summarize(root: Path) -> dict:
             "final_steps": [int(c["steps"][-1]) for c in curves],
         }
         steps += arms[arm]["final_steps"]
-    config = json.loads(next(root.glob("*/config.json")).read_text())
+    config = json.loads(next(root.glob("**/config.json")).read_text())
     return {"task": TASK, "success_bar": int(BAR), "env_steps_per_seed": min(steps, default=0),
             "eval_episodes": config["train"]["eval_episodes"], "arms": arms}  # fmt: skip
 
@@ -55,7 +60,7 @@ def figure(root: Path, published: Path, out: Path) -> None:
     fig, ax = plt.subplots(figsize=(9, 4.8))
     last = 0
     for arm, (label, color) in ARM_LABELS.items():
-        if not (root / arm / "eval.csv").exists():
+        if not has_evals(root / arm):
             continue
         for i, c in enumerate(eval_curves(root / arm, "policy_return").values()):
             ax.plot(c["steps"], c["return"], color=color, marker=".", lw=1,
@@ -98,16 +103,18 @@ def video(arm_dir: Path, out: Path, frames: int = 6) -> str:
 
     curves = eval_curves(arm_dir, "policy_return")
     seed = max(curves, key=lambda s: curves[s]["return"][-1])
-    config = load_config(arm_dir)
+    alone = (arm_dir / f"seed{seed}").is_dir()  # the seed ran as its own process
+    run_dir = arm_dir / f"seed{seed}" if alone else arm_dir
+    config = load_config(run_dir)
     spec, train = build(config)
-    keys = jax.random.split(jax.random.PRNGKey(0), len(curves))
-    ckpt = Checkpointer(arm_dir / "checkpoints")
+    keys = jax.random.split(jax.random.PRNGKey(0), 1 if alone else len(curves))
+    ckpt = Checkpointer(run_dir / "checkpoints")
     try:
         step = ckpt.latest_step()
         state = ckpt.restore({"state": jax.eval_shape(jax.vmap(train.init), keys)}, step)
     finally:
         ckpt.close()
-    agent_state = jax.tree.map(lambda x: x[seed], state["state"].agent)
+    agent_state = jax.tree.map(lambda x: x[0 if alone else seed], state["state"].agent)
     mp4 = out / "best_seed.mp4"
     summary = render_policy(train.env, train.agent, agent_state, "prior", 1,
                             eval_key(seed, step), mp4,
@@ -130,7 +137,7 @@ def main(recipe: str = "transition", results: Path = Path("results/sit_simple_so
 
         select_gl()
     root = results / recipe
-    if not any((root / arm / "eval.csv").exists() for arm in ARM_LABELS):
+    if not any(has_evals(root / arm) for arm in ARM_LABELS):
         raise SystemExit(f"error: no arm of {root} has an eval.csv yet (run --arm beta1 first)")
     summary = summarize(root)
     out.mkdir(parents=True, exist_ok=True)

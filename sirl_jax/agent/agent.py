@@ -12,6 +12,8 @@ from flax import struct
 
 from sirl_jax.agent import losses
 from sirl_jax.agent.config import AgentConfig
+from sirl_jax.agent.hyper import init_hyper
+from sirl_jax.agent.hyper import key as hyper_key
 from sirl_jax.agent.math import discount_from_episode_length
 from sirl_jax.agent.networks import init_params
 from sirl_jax.agent.planner import PlannerModel, PlannerState, make_planner
@@ -31,13 +33,15 @@ def wm_keys(cfg: AgentConfig) -> tuple[str, ...]:
 class AgentState:
     """params: {'encoder', 'dynamics', 'reward', 'policy', 'qs'} (+ 'termination' if episodic);
     target_qs: Polyak copy of 'qs';
-    wm_opt_state / pi_opt_state: Adam states; scale: [] running Q scale S."""
+    wm_opt_state / pi_opt_state: Adam states; scale: [] running Q scale S;
+    hyper: the run's per-run scalars (`sirl_jax.agent.hyper`)."""
 
     params: dict
     target_qs: dict
     wm_opt_state: optax.OptState
     pi_opt_state: optax.OptState
     scale: jax.Array
+    hyper: dict
 
 
 @dataclasses.dataclass(frozen=True)
@@ -170,6 +174,7 @@ def make_tdmpc2(
             wm_opt_state=wm_tx.init(wm_params),
             pi_opt_state=pi_tx.init(params["policy"]),
             scale=jnp.ones((), jnp.float32),
+            hyper=init_hyper(cfg),
         )
 
     sirl_reference = make_sirl_reference(cfg, success_bar)
@@ -205,6 +210,7 @@ def make_tdmpc2(
                 batch,
                 sirl_reference(r_max),
                 k_pi,
+                state.hyper[hyper_key("sirl.beta")],
             ),
             has_aux=True,
         )
@@ -218,6 +224,7 @@ def make_tdmpc2(
             wm_opt_state=wm_opt_state,
             pi_opt_state=pi_opt_state,
             scale=scale,
+            hyper=state.hyper,
         )
         metrics = {
             **wm_metrics,

@@ -34,6 +34,8 @@ from sirl_jax.agent import losses
 from sirl_jax.agent.agent import Agent, check_sizes, make_sirl_reference, polyak
 from sirl_jax.agent.config import AgentConfig
 from sirl_jax.agent.fasttd3_nets import ObsNorm, ReluMLP, project, widths
+from sirl_jax.agent.hyper import init_hyper
+from sirl_jax.agent.hyper import key as hyper_key
 from sirl_jax.types import Batch
 
 sg = jax.lax.stop_gradient
@@ -69,7 +71,8 @@ class FastTD3State:
     """params: {'actor', 'critic'} with the two critics stacked on a leading [2] axis, and
     'actor_ema' (the averaged actor that acts) when `fasttd3.actor_ema` > 0;
     target_critic: Polyak copy of 'critic'; obs_norm: observation statistics; scale: [] the
-    running Q scale S of the self-imitative term."""
+    running Q scale S of the self-imitative term; hyper: the run's per-run scalars
+    (`sirl_jax.agent.hyper`)."""
 
     params: dict
     target_critic: dict
@@ -77,6 +80,7 @@ class FastTD3State:
     critic_opt_state: optax.OptState
     obs_norm: ObsNorm
     scale: jax.Array
+    hyper: dict
 
 
 @struct.dataclass
@@ -135,6 +139,7 @@ def make_fasttd3(
             critic_opt_state=critic_tx.init(params["critic"]),
             obs_norm=ObsNorm.init(obs_size),
             scale=jnp.ones((), jnp.float32),
+            hyper=init_hyper(cfg),
         )
 
     def critic_loss(critic_params, target_critic, actor_params, s0, a0, sn, ret, boot, key):
@@ -154,7 +159,7 @@ def make_fasttd3(
         loss = jnp.sum(jnp.mean(ce, axis=1))  # qf1_loss + qf2_loss
         return loss, {"qf_loss": loss, "qf_target_mean": jnp.mean(proj_values[0])}
 
-    def actor_loss(actor_params, critic_params, scale, s0, a0, episode_return, return_ref):
+    def actor_loss(actor_params, critic_params, scale, s0, a0, episode_return, return_ref, beta):
         action = actor.apply({"params": actor_params}, s0)
         q = values(critic_logits(critic_params, s0, action))  # [2, B]
         q = jnp.min(q, axis=0) if fc.use_cdq else jnp.mean(q, axis=0)
@@ -166,7 +171,7 @@ def make_fasttd3(
             zero = jnp.zeros(())
             return rl, (new_scale, {**metrics, "sirl_loss": zero, "sirl_weight_mean": zero,
                                     "pi_loss": rl})  # fmt: skip
-        omega = losses.sirl_weight(episode_return, return_ref, cfg.sirl)
+        omega = losses.sirl_weight(episode_return, return_ref, cfg.sirl, beta)
         bc = jnp.mean(jnp.square(action - a0), axis=-1)  # [B]
         sirl_loss = sg(new_scale) * jnp.mean(omega * bc)
         loss = rl + sirl_loss
@@ -212,12 +217,12 @@ def make_fasttd3(
         last = jax.tree_util.tree_map(lambda x: x[-1], grouped)
         (_, (scale, pi_m)), grads = jax.value_and_grad(actor_loss, has_aux=True)(
             params["actor"], critic, state.scale, s0s[-1], last.action[0], last.episode_return,
-            sirl_reference(r_max))  # fmt: skip
+            sirl_reference(r_max), state.hyper[hyper_key("sirl.beta")])  # fmt: skip
         upd, actor_opt = actor_tx.update(grads, state.actor_opt_state, params["actor"])
         params = {**params, "actor": optax.apply_updates(params["actor"], upd), "critic": critic}
         if fc.actor_ema > 0:
             params["actor_ema"] = polyak(params["actor_ema"], params["actor"], fc.actor_ema)
-        new_state = FastTD3State(params, target, actor_opt, critic_opt, norm, scale)
+        new_state = FastTD3State(params, target, actor_opt, critic_opt, norm, scale, state.hyper)
         metrics = {k: jnp.mean(v) for k, v in ms.items()}
         return new_state, {**metrics, **pi_m, "actor_grad_norm": optax.tree.norm(grads)}
 

@@ -45,8 +45,11 @@ def update_scale(scale: jax.Array, q0: jax.Array, tau: float) -> jax.Array:
     return scale + tau * (jnp.maximum(1.0, p95 - p5) - scale)
 
 
-def sirl_weight(episode_return: jax.Array, return_ref: jax.Array, sirl: SirlConfig) -> jax.Array:
+def sirl_weight(episode_return: jax.Array, return_ref: jax.Array, sirl: SirlConfig,
+                beta: jax.Array | None = None) -> jax.Array:  # fmt: skip
     """omega(R) = beta * exp((R - G) / max(|G|, g_eps)), exponent clipped to <= 0 ([B] -> [B]).
+
+    beta: the run's traced weight (`state.hyper`, `sirl_jax.agent.hyper`); None: `sirl.beta`.
 
     The paper's exp((R - G) / G) flips sign for G < 0 and exceeds beta for R > G; the floored |G|
     denominator and the clip keep omega in (0, beta] and increasing in R for every G.
@@ -54,7 +57,7 @@ def sirl_weight(episode_return: jax.Array, return_ref: jax.Array, sirl: SirlConf
     x = (episode_return - return_ref) / jnp.maximum(jnp.abs(return_ref), sirl.g_eps)
     if sirl.clip_exponent:
         x = jnp.minimum(x, 0.0)
-    return sg(sirl.beta * jnp.exp(x))
+    return sg((sirl.beta if beta is None else beta) * jnp.exp(x))
 
 
 def world_model_loss(
@@ -159,12 +162,14 @@ def policy_loss(
     batch: Batch,
     return_ref: jax.Array,
     key: jax.Array,
+    beta: jax.Array | None = None,
 ) -> tuple[jax.Array, tuple[jax.Array, dict]]:
     """Policy-prior loss (spec §2.5) plus, when cfg.sirl.enabled, the BC term (spec §5).
 
     Args:
       zs: [H+1, B, Z] detached rollout latents; qs_params: detached, updated online Q params.
       return_ref: [] G of the self-imitative weight (`Agent.sirl_reference`).
+      beta: [] the run's beta (`state.hyper`); None: `cfg.sirl.beta`.
     Returns:
       loss []; aux = (updated running scale [], metrics).
     """
@@ -193,7 +198,7 @@ def policy_loss(
     }
     loss = rl
     if cfg.sirl.enabled:
-        omega = sirl_weight(batch.episode_return, return_ref, cfg.sirl)
+        omega = sirl_weight(batch.episode_return, return_ref, cfg.sirl, beta)
         bc = bc_term(cfg, out, batch.action, omega)
         bc_loss = jnp.sum(w[:-1] * jnp.mean(bc, axis=1)) / Hp1
         loss = rl + bc_loss
