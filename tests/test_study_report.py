@@ -113,10 +113,11 @@ def test_parallel_learner_config_is_the_fasttd3_cpu_preset_at_beta():
     for beta in (0.0, 1.0):
         cfg = config(beta, 200_000)
         assert cfg.agent.kind == "fasttd3" and cfg.agent.sirl.beta == beta
-        # The study ran before replay sampling was an option, with FastTD3 drawing episode-uniformly.
+        # it ran before replay sampling was an option, FastTD3 drawing episode-uniformly
         assert cfg.agent.fasttd3.replay_sampling == "episode"
         assert preset.agent.fasttd3.replay_sampling == "transition"
-        assert cfg.agent.fasttd3 == dataclasses.replace(preset.agent.fasttd3, replay_sampling="episode")
+        episode = dataclasses.replace(preset.agent.fasttd3, replay_sampling="episode")
+        assert cfg.agent.fasttd3 == episode
         assert cfg.train.task == "h1hand-sit_simple-v0" and cfg.train.steps == 200_000
         assert (cfg.train.eval_every, cfg.train.eval_episodes) == (10_000, 4)
         assert cfg.train.num_envs == preset.train.num_envs
