@@ -13,6 +13,7 @@ import pytest
 from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
 from sirl_jax.agent.fasttd3 import ObsNorm, project
 from sirl_jax.agent.fasttd3_config import FastTD3Config
+from sirl_jax.agent.hyper import with_hyper
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs.classic import PendulumSwingup
 from sirl_jax.presets import get_preset
@@ -92,12 +93,15 @@ def test_beta_zero_is_plain_fasttd3_and_the_term_is_as_defined():
     plain, zero, sirl = _agent(enabled=False), _agent(beta=0.0), _agent(beta=1.0)
     state = plain.init(key)
     s_plain, m_plain = jax.jit(plain.update)(state, batch, r_max, key)
-    s_zero, m_zero = jax.jit(zero.update)(state, batch, r_max, key)
-    jax.tree.map(lambda x, y: np.testing.assert_array_equal(x, y), s_plain, s_zero)
+    # the update reads beta from the state (`state.hyper`): each agent gets its own
+    s_zero, m_zero = jax.jit(zero.update)(with_hyper(state, zero.cfg), batch, r_max, key)
+    assert float(s_zero.hyper["sirl_beta"]) == 0.0
+    jax.tree.map(lambda x, y: np.testing.assert_array_equal(x, y), s_plain,
+                 s_zero.replace(hyper=s_plain.hyper))  # fmt: skip
     assert float(m_zero["sirl_loss"]) == 0.0 and float(m_plain["sirl_loss"]) == 0.0
 
     # beta 1: the critics see the same data, the actor gets sg(S) * mean(omega * BC) on top.
-    s_sirl, m_sirl = jax.jit(sirl.update)(state, batch, r_max, key)
+    s_sirl, m_sirl = jax.jit(sirl.update)(with_hyper(state, sirl.cfg), batch, r_max, key)
     jax.tree.map(lambda x, y: np.testing.assert_array_equal(x, y),
                  s_plain.params["critic"], s_sirl.params["critic"])  # fmt: skip
     assert not np.allclose(s_plain.params["actor"]["out"]["kernel"],

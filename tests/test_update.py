@@ -11,6 +11,7 @@ import pytest
 from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
 from sirl_jax.agent import losses as L
 from sirl_jax.agent.agent import polyak
+from sirl_jax.agent.hyper import with_hyper
 from sirl_jax.agent.networks import init_params
 from sirl_jax.agent.world_model import make_world_model
 from sirl_jax.types import Batch
@@ -44,7 +45,9 @@ def setup():
         "plain": make_agent(_cfg(enabled=False), O, A, T),
     }
     state = jax.jit(agents["beta1"].init)(jax.random.PRNGKey(0))
-    updates = {k: jax.jit(a.update) for k, a in agents.items()}
+    # each agent's update reads beta from the state (`state.hyper`): give it its own
+    updates = {k: jax.jit(lambda s, *xs, a=a: a.update(with_hyper(s, a.cfg), *xs))
+               for k, a in agents.items()}  # fmt: skip
     return agents, updates, state, _batch(jax.random.PRNGKey(1))
 
 
@@ -97,6 +100,8 @@ def test_beta_zero_equals_plain_tdmpc2(setup):
         key = jax.random.PRNGKey(10 + i)
         s0, m0 = updates["beta0"](s0, batch, R_MAX, key)
         s1, m1 = updates["plain"](s1, batch, R_MAX, key)
+    assert float(s0.hyper["sirl_beta"]) == 0.0 and float(s1.hyper["sirl_beta"]) == 1.0
+    s0 = s0.replace(hyper=s1.hyper)  # the configs' betas; the term is off in "plain"
     for a, b in zip(jax.tree_util.tree_leaves(s0), jax.tree_util.tree_leaves(s1), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-6)
     for k in m1:

@@ -33,3 +33,9 @@ def get(obj, field: str):
 def init_hyper(cfg) -> dict[str, jax.Array]:
     """{key: [] float32} of every sweepable field, from `cfg` (an `AgentConfig`)."""
     return {key(f): jnp.float32(get(cfg, f)) for f in SWEEPABLE}
+
+
+def with_hyper(state, cfg):
+    """`state` (a learner's) carrying `cfg`'s per-run values: a state made by one agent, updated
+    by another agent's config (a test's shared init, say)."""
+    return state.replace(hyper=init_hyper(cfg))
