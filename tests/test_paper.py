@@ -45,3 +45,12 @@ def test_run_arm_writes_resumes_and_finishes_once(tmp_path):
     final = final_returns(out)
     assert final.shape == (2,) and np.all(np.isfinite(final))
     assert run_arm(cfg, 2, out, "test") == summary  # done: nothing is rerun
+
+
+@pytest.mark.timeout(300)
+def test_run_arm_refuses_a_seed_index_outside_the_arm(tmp_path):
+    cfg = get_preset("smoke")
+    for only in ((3,), (), (1, 1), (-1,)):
+        with pytest.raises(ValueError, match=r"only=.* is invalid; allowed: distinct seed indices"
+                                             r" in 0\.\.2"):  # fmt: skip
+            run_arm(cfg, 3, tmp_path / "arm", "test", only=only)

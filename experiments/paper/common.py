@@ -119,15 +119,15 @@ def run_arm(config: Config, seeds: int, out: Path, label: str,
     train = make_train(config, arm_env(config))
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(json.dumps(dataclasses.asdict(config), indent=1))
-    print(f"{label}: {tc.task}, {seeds} seeds x {tc.num_envs} envs, beta "
-          f"{config.agent.sirl.beta:g}, G {config.agent.sirl.g_source}, {tc.steps:,} steps per "
-          f"seed; {train.buffer.describe()}", flush=True)  # fmt: skip
     keys = jax.random.split(jax.random.PRNGKey(0), seeds)
     ids = tuple(range(seeds)) if only is None else tuple(only)
     if not ids or min(ids) < 0 or max(ids) >= seeds or len(set(ids)) != len(ids):
         raise ValueError(f"only={only!r} is invalid; allowed: distinct seed indices in "
                          f"0..{seeds - 1}")  # fmt: skip
     keys, seeds = keys[np.asarray(ids)], len(ids)
+    print(f"{label}: {tc.task}, seeds {', '.join(map(str, ids))} x {tc.num_envs} envs, beta "
+          f"{config.agent.sirl.beta:g}, G {config.agent.sirl.g_source}, {tc.steps:,} steps per "
+          f"seed; {train.buffer.describe()}", flush=True)  # fmt: skip
     init = jax.vmap(train.init)
     step = jax.jit(jax.vmap(train.step), donate_argnums=0)
     evaluate = jax.jit(jax.vmap(train.evaluate))
