@@ -1,4 +1,4 @@
-"""The tyro argument dataclasses of the commands other than `train` (`cli.TrainArgs`).
+"""The tyro argument dataclasses of the commands.
 
 `cli.py` parses argv with them and dispatches; each command's body lives in its own module.
 """
@@ -7,11 +7,56 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Annotated
 
 import tyro
 
+from sirl_jax.config import Config
 from sirl_jax.run.checkpoint_files import read_best
 from sirl_jax.run.errors import UsageError
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainArgs:
+    """Train a TD-MPC2 + TDMPBC agent (or FastTD3 + SIRL: --agent.kind fasttd3, or a fasttd3-*
+    preset). Short flags: --task --seed --steps --num-envs
+    --chunk-steps --utd --buffer-size --eval-every --checkpoint-every --log-every
+    --[no-]save-buffer (train.*); --model-size --horizon --batch-size (agent.*); --beta,
+    --g rmax|target, --bc-form, --[no-]sirl (agent.sirl.*)."""
+
+    config: Annotated[Config, tyro.conf.arg(name="")]
+    preset: str = "default"
+    """Config the flags start from: default (reference), tdmpbc-paper, smoke (CPU, ~minute),
+    cpu, gpu, gpu-fast; fasttd3-smoke, fasttd3-cpu, fasttd3-gpu (FastTD3 + SIRL). smoke, cpu
+    and fasttd3-smoke are sized for the task's episode length."""
+    run_dir: str | None = None
+    """Run directory (default: runs/<task>-s<seed>-<UTC time>); must not exist or be empty."""
+    resume: str | None = None
+    """Continue the run in this directory from its latest checkpoint, with its saved config."""
+    resume_step: int | None = None
+    """With --resume: continue from this checkpoint (env step) instead of the latest."""
+    keep: int = 3
+    """Checkpoints kept by rotation (>= 2 keeps an older good one next to the newest)."""
+    guard: bool = True
+    """Copy the state before each chunk so that, when a chunk goes non-finite, the last good
+    state is checkpointed (one extra on-device copy of the train state, buffer included)."""
+    progress: bool = True
+    """Show the tqdm progress bar."""
+    tensorboard: bool = True
+    """Write TensorBoard event files under <run_dir>/tb."""
+    wandb: bool = False
+    """Also log to Weights & Biases (needs `pip install wandb`)."""
+    wandb_project: str = "sirl_jax"
+    """W&B project name."""
+    devices: int = 1
+    """Split the envs, replay buffer and batch over this many local devices (one learner)."""
+    seeds: int = 1
+    """Train this many seeds (train.seed, +1, ...) of every sweep point as one program, each
+    run in RUN_DIR/<run> (docs/cli.md, "Sweeps")."""
+    sweep: tuple[str, ...] = ()
+    """Per-run values, FIELD=V1,V2 (e.g. sirl.beta=0,1): one run per value and seed, in one
+    program. Fields: `sirl_jax.agent.hyper.SWEEPABLE`."""
+
 
 
 @dataclasses.dataclass(frozen=True)

@@ -18,7 +18,6 @@ import dataclasses
 import os
 import sys
 from pathlib import Path
-from typing import Annotated
 
 import tyro
 
@@ -32,6 +31,7 @@ from sirl_jax.run.args import (
     RenderArgs,
     ReportArgs,
     Sim2simArgs,
+    TrainArgs,
     with_best,
 )
 from sirl_jax.run.checkpoint import CheckpointError
@@ -61,42 +61,6 @@ def _short_flags() -> dict[str, str]:
 
 SHORT_FLAGS = _short_flags()
 """Short flag -> config flag: every `train.*` field by its own name, plus the agent ones."""
-
-
-@dataclasses.dataclass(frozen=True)
-class TrainArgs:
-    """Train a TD-MPC2 + TDMPBC agent (or FastTD3 + SIRL: --agent.kind fasttd3, or a fasttd3-*
-    preset). Short flags: --task --seed --steps --num-envs
-    --chunk-steps --utd --buffer-size --eval-every --checkpoint-every --log-every
-    --[no-]save-buffer (train.*); --model-size --horizon --batch-size (agent.*); --beta,
-    --g rmax|target, --bc-form, --[no-]sirl (agent.sirl.*)."""
-
-    config: Annotated[Config, tyro.conf.arg(name="")]
-    preset: str = "default"
-    """Config the flags start from: default (reference), tdmpbc-paper, smoke (CPU, ~minute),
-    cpu, gpu, gpu-fast; fasttd3-smoke, fasttd3-cpu, fasttd3-gpu (FastTD3 + SIRL). smoke, cpu
-    and fasttd3-smoke are sized for the task's episode length."""
-    run_dir: str | None = None
-    """Run directory (default: runs/<task>-s<seed>-<UTC time>); must not exist or be empty."""
-    resume: str | None = None
-    """Continue the run in this directory from its latest checkpoint, with its saved config."""
-    resume_step: int | None = None
-    """With --resume: continue from this checkpoint (env step) instead of the latest."""
-    keep: int = 3
-    """Checkpoints kept by rotation (>= 2 keeps an older good one next to the newest)."""
-    guard: bool = True
-    """Copy the state before each chunk so that, when a chunk goes non-finite, the last good
-    state is checkpointed (one extra on-device copy of the train state, buffer included)."""
-    progress: bool = True
-    """Show the tqdm progress bar."""
-    tensorboard: bool = True
-    """Write TensorBoard event files under <run_dir>/tb."""
-    wandb: bool = False
-    """Also log to Weights & Biases (needs `pip install wandb`)."""
-    wandb_project: str = "sirl_jax"
-    """W&B project name."""
-    devices: int = 1
-    """Split the envs, replay buffer and batch over this many local devices (one learner)."""
 
 
 # ---------------------------------------------------------------- parsing
@@ -150,7 +114,7 @@ def _base_config(argv: list[str]) -> tuple[Config, str, dict]:
             raise UsageError("--preset cannot be combined with --resume (the saved config is used)")
         if not Path(resume).is_dir():
             raise UsageError(f"--resume {resume}: no such run directory")
-        return runlog.load_config(Path(resume)), "default", {}
+        return runlog.load_config(Path(resume), sweep_ok=True), "default", {}
     try:
         chosen = PRESETS[preset or "default"]
     except KeyError as e:
@@ -195,8 +159,13 @@ def parse_train_args(argv: list[str]) -> tuple[TrainArgs, dict]:
 
 
 def train(args: TrainArgs, derived: dict) -> int:
-    """The `train` command (`runner.train_command`)."""
+    """The `train` command (`runner.train_command`; a sweep: `sweep_run.sweep_command`)."""
     from sirl_jax.run.runner import train_command
+    from sirl_jax.run.sweep_run import is_sweep, sweep_command
+
+    if is_sweep(args):
+        sweep_command(args)
+        return EXIT_OK
 
     train_command(args, derived)
     return EXIT_OK

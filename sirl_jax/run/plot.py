@@ -156,7 +156,8 @@ def plot(run_dirs: Sequence[Path], out: Path, reference: bool = False) -> list[s
 
     from sirl_jax.envs import spec
 
-    runs = [load_run(Path(p)) for p in run_dirs]
+    paths = [r for p in map(Path, run_dirs) for r in (runlog.sweep_runs(p) or [p])]
+    runs = [load_run(p) for p in paths]  # a sweep directory: its runs
     groups = group_runs(runs)
     tasks = sorted({r.task for r in runs})
     panels = 3 if len(tasks) > 1 else 2

@@ -164,6 +164,11 @@ def gather(run_dir: Path, curves: bool = True) -> Report:
 
     from sirl_jax.config import flatten_config
 
+    if runlog.sweep_runs(run_dir):  # one line naming the sweep's runs
+        try:
+            runlog.load_config(run_dir)
+        except runlog.RunDirError as e:
+            raise UsageError(str(e)) from e
     metrics, steps = check_run(run_dir)
     try:
         config = runlog.load_config(run_dir)

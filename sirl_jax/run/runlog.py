@@ -49,12 +49,25 @@ class RunDirError(ValueError):
     """A run directory or its config.json is missing, taken, or unreadable."""
 
 
-def load_config(run_dir: Path) -> Config:
-    """The config saved in `run_dir/config.json`; RunDirError if absent or invalid. A config
+def sweep_runs(run_dir: Path) -> list[Path] | None:
+    """The run directories of a sweep directory (its sweep.json), or None for any other."""
+    path = run_dir / "sweep.json"
+    if not path.is_file():
+        return None
+    return [run_dir / name for name in json.loads(path.read_text())["runs"]]
+
+
+def load_config(run_dir: Path, sweep_ok: bool = False) -> Config:
+    """The config saved in `run_dir/config.json`; RunDirError if absent or invalid, or if
+    `run_dir` holds a sweep (unless `sweep_ok`: the sweep's base config). A config
     saved before `train.contact_set` existed reads as "reduced", the set it was trained with, one
     saved before `train.hand_floor` existed as "none" (and, on a task of
     `CONTACT_SET_LOCOMOTION`, with the "reduced" set) and one saved before
     `train.contact_budget` existed as 0 (no budget), so it resumes as it ran."""
+    runs = None if sweep_ok else sweep_runs(run_dir)
+    if runs:
+        raise RunDirError(f"{run_dir} is a sweep of {len(runs)} runs, not one run; give one of "
+                          f"them, e.g. {runs[0]} (all: {run_dir}/*)")  # fmt: skip
     path = run_dir / "config.json"
     if not path.is_file():
         raise RunDirError(f"{run_dir} is not a run directory (no config.json)")

@@ -1,0 +1,245 @@
+"""`train --seeds N --sweep FIELD=V1,V2`: a sweep's runs trained as one vmapped program, each
+in a run directory of its own.
+
+    RUN_DIR/sweep.json     the axes, the seeds and every run's name, in the program's order
+    RUN_DIR/<name>/        a run directory like any other (e.g. beta=0_seed=1): config.json
+                           with the run's own values, checkpoints/ of its slice of the state,
+                           metrics.csv, eval.csv, tb/
+
+`eval`, `render`, `export`, `report` and `plot` take RUN_DIR/<name> as they take a run trained
+alone; `plot RUN_DIR/*` draws each point of the grid as mean ± std over its seeds. A run whose
+chunk goes non-finite is stopped alone (its last checkpoint kept, a line says so) while the
+others go on; the per-env reset already survives physics blow-ups within a run. Resume takes
+the newest checkpoint every run has, so a kill between two runs' saves loses at most one
+checkpoint interval of any run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+from sirl_jax.config import Config, config_to_dict
+from sirl_jax.run import progress as prog
+from sirl_jax.run import runlog
+from sirl_jax.run.checkpoint import Checkpointer
+from sirl_jax.run.errors import TrainingFailure, UsageError
+from sirl_jax.run.host_memory import trim_host_heap
+from sirl_jax.run.runner import build, eval_key
+from sirl_jax.run.states import commit, restore_state, save_state
+from sirl_jax.sweep import Sweep
+
+SWEEP_FILE = "sweep.json"
+
+
+def load_sweep(run_dir: Path) -> Sweep:
+    """The sweep a sweep directory was trained with (its sweep.json)."""
+    import json
+
+    raw = json.loads((run_dir / SWEEP_FILE).read_text())
+    return Sweep(int(raw["seeds"]), tuple((f, tuple(vs)) for f, vs in raw["axes"].items()))
+
+
+def _slice(tree, r: int):
+    return jax.tree.map(lambda x: x[r], tree)
+
+
+def _common_step(ckpts: list[Checkpointer], names: list[str]) -> int:
+    """The newest checkpoint step every run has."""
+    steps = [set(c.steps()) for c in ckpts]
+    missing = [n for n, s in zip(names, steps, strict=True) if not s]
+    if missing:
+        raise UsageError(f"--resume: runs {', '.join(missing)} have no checkpoint; nothing to "
+                         "resume (nothing was changed)")  # fmt: skip
+    common = set.intersection(*steps)
+    if not common:
+        raise UsageError("--resume: the runs have no checkpoint step in common (nothing was "
+                         "changed)")  # fmt: skip
+    return max(common)
+
+
+class SweepRun:
+    """The runs' logs, checkpoints and best evaluations, and the vmapped loop over them."""
+
+    def __init__(self, config: Config, sweep: Sweep, run_dir: Path, keep: int,
+                 tensorboard: bool, show_progress: bool):  # fmt: skip
+        self.config, self.sweep, self.run_dir = config, sweep, run_dir
+        self.configs, self.names = sweep.configs(config), sweep.names()
+        self.dirs = [run_dir / n for n in self.names]
+        self.ckpts = [Checkpointer(d / "checkpoints", max_to_keep=keep) for d in self.dirs]
+        self.tensorboard, self.show_progress = tensorboard, show_progress
+        self.best = [(-math.inf, 0)] * len(sweep)
+        self.failed: dict[int, str] = {}
+
+    def restore(self, train) -> tuple[object, int]:
+        for c in self.ckpts:
+            for path in c.remove_partial_writes():
+                print(f"note: removed {path}, an unfinished checkpoint write")
+        step = _common_step(self.ckpts, self.names)
+        states = [restore_state(c, train.init, jax.random.PRNGKey(cfg.train.seed), step)[0]
+                  for c, cfg in zip(self.ckpts, self.configs, strict=True)]  # fmt: skip
+        for r, c in enumerate(self.ckpts):
+            best = c.best()
+            self.best[r] = (best["value"], best["step"]) if best else (-math.inf, 0)
+        return commit(jax.tree.map(lambda *xs: jnp.stack(xs), *states)), step
+
+    def save(self, state, r: int) -> int:
+        return save_state(self.ckpts[r], _slice(state, r), self.config.train.save_buffer)
+
+    def evaluate(self, eval_fn, state, env_steps: int, logs, bar) -> None:
+        keys = jnp.stack([eval_key(c.train.seed, env_steps) for c in self.configs])
+        ev = jax.device_get(eval_fn(state, keys))
+        which = "planner" if self.config.agent.plans else "policy"
+        shown = []
+        for r, log in enumerate(logs):
+            if r in self.failed:
+                continue
+            metrics = prog.host_scalars(_slice(ev, r))
+            log.log("eval", env_steps, metrics)
+            value = metrics[f"eval/{which}_return"]
+            shown.append(f"{self.names[r]} {value:.4g}")
+            if value > self.best[r][0]:  # kept past --keep: eval/render/export --best
+                self.best[r] = (value, env_steps)
+                self.save(state, r)
+                self.ckpts[r].mark_best(env_steps, value, f"eval/{which}_return")
+        bar.write(f"eval @ {env_steps:,} ({which} return): " + ", ".join(shown))
+
+    def loop(self, train, state, logs) -> None:
+        t, names = self.config.train, self.names
+        step_fn = jax.jit(jax.vmap(train.step), donate_argnums=0)
+        eval_fn = jax.jit(jax.vmap(train.evaluate))
+        env_steps = int(jax.device_get(state.env_steps)[0])
+        means = [prog.MetricMean() for _ in names]
+        bar = prog.Progress(t.steps, env_steps, enabled=self.show_progress)
+        with prog.StopOnSigint() as stop, contextlib.closing(bar):
+            while env_steps < t.steps and not stop.requested:
+                before = env_steps
+                state, metrics = step_fn(state)
+                metrics = jax.device_get(metrics)
+                env_steps = int(metrics["env_steps"][0])
+                alive = [r for r in range(len(names)) if r not in self.failed]
+                for r in alive:
+                    m = prog.host_scalars(_slice(metrics, r))
+                    bad = prog.failures(m, env_steps - before, t.max_blowup_rate)
+                    if bad:
+                        self.failed[r] = (f"run {names[r]} failed in the chunk ending at env "
+                                          f"step {env_steps:,}: {'; '.join(bad)}; its last "
+                                          f"checkpoint is kept; the other runs go on")  # fmt: skip
+                        bar.write(f"warning: {self.failed[r]}")
+                        logs[r].log("metrics", env_steps, m)
+                        continue
+                    means[r].add(m)
+                    if prog.crossed(before, env_steps, t.log_every) or env_steps >= t.steps:
+                        logs[r].log("metrics", env_steps, means[r].pop())
+                alive = [r for r in alive if r not in self.failed]
+                if not alive:
+                    raise TrainingFailure(f"every run of the sweep failed: {self.failed}")
+                head = prog.host_scalars(_slice(metrics, alive[0]))
+                bar.update(env_steps, int(head["updates"]) * len(alive), head)
+                evaluated = prog.crossed(before, env_steps, t.eval_every)
+                if evaluated:
+                    self.evaluate(eval_fn, state, env_steps, logs, bar)
+                saved = prog.crossed(before, env_steps, t.checkpoint_interval)
+                for r in alive if saved else ():
+                    self.save(state, r)
+                if evaluated or saved:
+                    trim_host_heap()
+        for r in range(len(names)):
+            if r not in self.failed:
+                if stop.requested and means[r].pending():
+                    logs[r].log("metrics", env_steps, means[r].pop())
+                self.save(state, r)
+        how = "stopped (Ctrl-C/SIGTERM)" if env_steps < t.steps else "done"
+        print(f"sweep {how} at env step {env_steps:,} per run: {len(names) - len(self.failed)} "
+              f"of {len(names)} runs saved in {self.run_dir}/<run>/checkpoints"
+              + (f"; continue with: python -m sirl_jax train --resume {self.run_dir}"
+                 if env_steps < t.steps else ""))  # fmt: skip
+        for message in self.failed.values():
+            print(f"warning: {message}")
+
+
+def sweep_run(config: Config, sweep: Sweep, run_dir: Path, *, resuming: bool = False,
+              keep: int = 3, show_progress: bool = True,
+              tensorboard: bool = True) -> None:  # fmt: skip
+    """Trains (or resumes) every run of `sweep` over `config` in one program under `run_dir`."""
+    from sirl_jax.run.buffer_memory import check_buffer_fits
+
+    spec, train = build(config)
+    run = SweepRun(config, sweep, run_dir, keep, tensorboard, show_progress)
+    axes = ", ".join(f"{f}={','.join(f'{v:g}' for v in vs)}" for f, vs in sweep.axes)
+    print(runlog.describe_run(config, spec, train.buffer.describe(), run_dir,
+                              train.agent.iterations, None))  # fmt: skip
+    print(f"sweep: {len(sweep)} runs in one program ({sweep.seeds} seeds"
+          + (f" x {axes}" if axes else "") + f"): {', '.join(run.names)}")  # fmt: skip
+    check_buffer_fits(train.buffer.nbytes * len(sweep))
+    try:
+        if resuming:
+            state, step = run.restore(train)
+            print(f"resumed every run from env step {step:,}")
+        else:
+            state, step = commit(jax.jit(sweep.init(train, config))()), None
+        run_dir.mkdir(parents=True, exist_ok=True)
+        runlog.write_json(run_dir / "config.json", config_to_dict(config))  # what --resume reads
+        runlog.write_json(run_dir / SWEEP_FILE, {
+            "seeds": sweep.seeds, "axes": {f: list(vs) for f, vs in sweep.axes},
+            "runs": run.names})  # fmt: skip
+        logs = []
+        for d, cfg in zip(run.dirs, run.configs, strict=True):
+            runlog.write_json(d / "config.json", config_to_dict(cfg))
+            runlog.record_versions(d)
+            logs.append(runlog.RunLog(d, tensorboard=tensorboard))
+            if step is not None:
+                logs[-1].drop_after(step)
+        try:
+            run.loop(train, state, logs)
+        finally:
+            for log in logs:
+                log.close()
+    finally:
+        for c in run.ckpts:
+            c.close()
+
+
+def is_sweep(args) -> bool:
+    """`train` args that ask for a sweep: --seeds/--sweep, or --resume of a sweep directory."""
+    resumed = args.resume is not None and (Path(args.resume) / SWEEP_FILE).is_file()
+    return args.seeds != 1 or bool(args.sweep) or resumed
+
+
+def sweep_command(args) -> None:
+    """`train` with --seeds/--sweep, or --resume of a sweep directory (`cli.train`)."""
+    from sirl_jax.run.compile_cache import enable_compilation_cache
+    from sirl_jax.sweep import SweepError
+
+    unsupported = [(args.devices != 1, f"--devices {args.devices}"), (args.wandb, "--wandb"),
+                   (args.resume_step is not None, "--resume-step")]  # fmt: skip
+    for given, flag in unsupported:
+        if given:
+            raise UsageError(f"{flag} cannot be combined with a sweep (--seeds/--sweep); "
+                             "a sweep runs on one device and resumes from its newest "
+                             "checkpoint")  # fmt: skip
+    resuming = args.resume is not None
+    config = args.config
+    if resuming:
+        run_dir = Path(args.resume)
+    else:
+        run_dir = Path(args.run_dir or runlog.default_run_dir(config.train.task, config.train.seed))
+        runlog.check_new_run_dir(run_dir)
+    try:
+        if resuming:
+            if args.sweep or args.seeds != 1:
+                raise UsageError("--seeds/--sweep cannot be combined with --resume (the saved "
+                                 f"sweep, {run_dir / SWEEP_FILE}, is used)")  # fmt: skip
+            sweep = load_sweep(run_dir)
+        else:
+            sweep = Sweep.parse(args.seeds, args.sweep)
+        sweep.configs(config)  # a value the config refuses, before any work
+    except SweepError as e:
+        raise UsageError(str(e)) from e
+    enable_compilation_cache()
+    sweep_run(config, sweep, run_dir, resuming=resuming, keep=args.keep,
+              show_progress=args.progress, tensorboard=args.tensorboard)  # fmt: skip
