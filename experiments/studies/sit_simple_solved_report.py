@@ -37,8 +37,10 @@ def summarize(root: Path) -> dict:
     for arm in ARM_LABELS:
         if not has_evals(root / arm):
             continue
-        curves = eval_curves(root / arm, "policy_return").values()
+        by_seed = eval_curves(root / arm, "policy_return")
+        curves = by_seed.values()
         arms[arm] = {
+            "seeds": list(by_seed),  # the seed of each entry below (seeds may run one by one)
             "final": [round(float(c["return"][-1]), 1) for c in curves],
             "last3_mean": [round(float(np.mean(c["return"][-3:])), 1) for c in curves],
             "hours_to_bar": [hours_to(c, BAR) for c in curves],
