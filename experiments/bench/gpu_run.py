@@ -13,8 +13,8 @@ the wall-clock to the first evaluation at HumanoidBench's success bar. Then, if 
 Call 2 times R runs of the paper setting (5M agent, MPPI 512 x 8, E = 1, UTD 1, SIRL on) in one
 program for R = 3, then the largest first (24, 12, 6): env steps/s per run, the state's bytes
 per run at the `gpu` preset's replay (2M transitions), the device's peak memory, and 2M steps for
-every run projected against the paper's 12.5 V100-hours per run. The R runs are R vmapped
-seeds: a sweep over per-run scalars has the same program. Then the planner.jax round trip:
+every run projected against the paper's 12.5 V100-hours per run. The R runs are a sirl.beta
+sweep (0, 1, 0, ...): the same program as R vmapped seeds. Then the planner.jax round trip:
 serialise, reload and plan on the device; its actions must equal `agent.plan`'s.
 
 Every row is appended to OUT/call<N>.jsonl and printed with the elapsed time as it is
@@ -39,7 +39,7 @@ if __package__ in (None, ""):  # run as a file: make `experiments` and `sirl_jax
 import jax
 import jax.numpy as jnp
 
-from experiments.bench.device import QUICK_XLA_FLAGS, Sizes, train_seconds
+from experiments.bench.device_parts import QUICK_XLA_FLAGS, Sizes, train_seconds
 from experiments.paper.common import PAPER_HOURS
 from sirl_jax.agent import make_agent
 from sirl_jax.config import Config
@@ -181,7 +181,8 @@ def call2(rows: Rows, args) -> None:
             continue
 
         def one(r=r):
-            seconds, first, bad = train_seconds(sizes, sizes.tasks[0][1], 1, 1.0, True, seeds=r)
+            seconds, first, bad = train_seconds(sizes, sizes.tasks[0][1], 1, 1.0, True, seeds=r,
+                                                sweep=True)  # fmt: skip
             if bad:
                 raise FloatingPointError(f"{bad} physics blow-ups or non-finite losses")
             rate = sizes.train_chunk / seconds  # env steps/s of each run (E = 1)
