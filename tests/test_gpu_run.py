@@ -31,8 +31,11 @@ def _call(tmp_path: Path, *args: str) -> list[dict]:
 @pytest.mark.slow  # about 3 min: two quick calls, four compiles
 @pytest.mark.timeout(1800)
 def test_learning_call_evaluates_on_a_wall_clock_cadence(tmp_path):
-    rows = _call(tmp_path, "--call", "1", "--train-s", "12", "--eval-every-s", "4")
-    evals = [r for r in rows if r["kind"] == "eval"]
+    rows = _call(tmp_path, "--call", "1", "--train-s", "12", "--eval-every-s", "4",
+                 "--betas", "1", "0")  # both arms as one sweep program
+    both = [r for r in rows if r["kind"] == "eval"]
+    evals = [r for r in both if r["beta"] == 1.0]
+    assert [r["env_steps"] for r in both if r["beta"] == 0.0] == [r["env_steps"] for r in evals]
     assert 3 <= len(evals) <= 5  # 12 s of training, one every 4 s and one at the end
     steps = [r["env_steps"] for r in evals]
     assert steps == sorted(steps) and len(set(steps)) == len(steps)

@@ -47,6 +47,7 @@ from sirl_jax.envs import load
 from sirl_jax.presets import get_preset
 from sirl_jax.run.compile_cache import enable_compilation_cache
 from sirl_jax.run.export import export_planner
+from sirl_jax.sweep import Sweep
 from sirl_jax.train import make_train
 
 LEARN_TASKS = ("h1hand-sit_simple-v0", "h1hand-stand-v0")
@@ -85,57 +86,64 @@ def learn_config(task: str, quick: bool, beta: float) -> Config:
     return dataclasses.replace(cfg, train=train, agent=dataclasses.replace(cfg.agent, sirl=sirl))
 
 
-def learn(rows: Rows, cfg: Config, train_s: float, eval_every_s: float, deadline: float) -> None:
-    """Trains one seed for `train_s` after its compile (or until `deadline`, in seconds since
-    the call began), evaluating every `eval_every_s` of wall-clock and once at the end."""
+def learn(rows: Rows, cfg: Config, betas: list[float], train_s: float, eval_every_s: float,
+          deadline: float) -> None:  # fmt: skip
+    """Trains one run per beta, as one sweep program (`sirl_jax.sweep`), for `train_s` after
+    its compile (or until `deadline`, seconds since the call began), evaluating every run every
+    `eval_every_s` of wall-clock and once at the end."""
     tc = cfg.train
     spec, env = load(tc.task, **tc.env_options)
     bar = env.success_bar
     train = make_train(cfg, env)
-    step = jax.jit(train.step, donate_argnums=0)
-    evaluate = jax.jit(train.evaluate)
-    label = dict(task=spec.id, beta=cfg.agent.sirl.beta, envs=tc.num_envs)
+    sweep = Sweep.parse(1, [f"sirl.beta={','.join(f'{b:g}' for b in betas)}"])
+    step = jax.jit(jax.vmap(train.step), donate_argnums=0)
+    evaluate = jax.jit(jax.vmap(train.evaluate))
+    label = dict(task=spec.id, envs=tc.num_envs, runs=len(sweep))
     t0 = time.perf_counter()
-    state = jax.jit(train.init)(jax.random.PRNGKey(tc.seed))
+    state = jax.jit(sweep.init(train, cfg))()
     state, m = jax.block_until_ready(step(state))
-    ev = jax.block_until_ready(evaluate(state, jax.random.PRNGKey(1)))
+    keys = jnp.stack([jax.random.PRNGKey(1)] * len(sweep))
+    jax.block_until_ready(evaluate(state, keys))
     compile_s = time.perf_counter() - t0
-    rows.add("compiled", **label, first_chunk_and_eval_s=round(compile_s, 1), bar=bar)
+    rows.add("compiled", **label, betas=betas, first_chunk_and_eval_s=round(compile_s, 1),
+             bar=bar)  # fmt: skip
     end = min(time.perf_counter() + train_s, rows.start + deadline)
     train_wall = eval_wall = 0.0  # seconds in training chunks / in evaluations, after compile
-    steps0, updates0 = int(m["env_steps"]), int(m["updates"])
-    last_eval, first_bar, n = time.perf_counter(), None, 0
+    steps0, updates0 = int(m["env_steps"][0]), int(m["updates"][0])
+    last_eval, first_bar, n = time.perf_counter(), [None] * len(sweep), 0
     while True:
         now = time.perf_counter()
         done = now >= end
         if done or now - last_eval >= eval_every_s:
             e0 = time.perf_counter()
-            ev = jax.device_get(evaluate(state, jax.random.fold_in(jax.random.PRNGKey(1), n)))
+            ev = jax.device_get(evaluate(state, jax.vmap(jax.random.fold_in, (0, None))(keys, n)))
             eval_wall += time.perf_counter() - e0
             last_eval, n = time.perf_counter(), n + 1
-            steps, updates = int(m["env_steps"]), int(m["updates"])
-            ret = float(ev["eval/policy_return"])
-            if first_bar is None and bar is not None and ret >= bar:
-                first_bar = round(compile_s + train_wall + eval_wall, 1)
-            rate = (steps - steps0) / max(train_wall, 1e-9)
-            rows.add("eval", **label, wall_s=round(compile_s + train_wall + eval_wall, 1),
-                     train_wall_s=round(train_wall, 1), env_steps=steps, updates=updates,
-                     policy_return=round(ret, 1),
-                     policy_return_std=round(float(ev["eval/policy_return_std"]), 1),
-                     policy_length=round(float(ev["eval/policy_length"]), 1),
-                     success=float(ev["eval/policy_success"]),
-                     env_steps_per_s=round(rate, 1),
-                     updates_per_s=round((updates - updates0) / max(train_wall, 1e-9), 1),
-                     first_bar_wall_s=first_bar)  # fmt: skip
+            steps, updates = int(m["env_steps"][0]), int(m["updates"][0])
+            wall = round(compile_s + train_wall + eval_wall, 1)
+            for r, beta in enumerate(betas):
+                ret = float(ev["eval/policy_return"][r])
+                if first_bar[r] is None and bar is not None and ret >= bar:
+                    first_bar[r] = wall
+                rows.add("eval", **label, beta=beta, wall_s=wall,
+                         train_wall_s=round(train_wall, 1), env_steps=steps, updates=updates,
+                         policy_return=round(ret, 1),
+                         policy_return_std=round(float(ev["eval/policy_return_std"][r]), 1),
+                         policy_length=round(float(ev["eval/policy_length"][r]), 1),
+                         success=float(ev["eval/policy_success"][r]),
+                         env_steps_per_s=round((steps - steps0) / max(train_wall, 1e-9), 1),
+                         updates_per_s=round((updates - updates0) / max(train_wall, 1e-9), 1),
+                         first_bar_wall_s=first_bar[r])  # fmt: skip
         if done:
             return
         c0 = time.perf_counter()
         state, m = step(state)
         m = jax.device_get(m)
         train_wall += time.perf_counter() - c0
-        if bool(m["nonfinite_loss"]) or m["env/blowups"] > tc.max_blowup_rate * tc.steps_per_call:
+        if m["nonfinite_loss"].any() or (m["env/blowups"] > tc.max_blowup_rate
+                                         * tc.steps_per_call).any():  # fmt: skip
             raise FloatingPointError(f"non-finite losses or physics blow-ups after "
-                                     f"{int(m['env_steps']):,} env steps")  # fmt: skip
+                                     f"{int(m['env_steps'][0]):,} env steps")  # fmt: skip
 
 
 def call1(rows: Rows, args) -> None:
@@ -145,10 +153,9 @@ def call1(rows: Rows, args) -> None:
             rows.add("skipped", task=task, why=f"{left:.0f} s of the budget left, under "
                      f"--min-task-s {args.min_task_s:g}")  # fmt: skip
             continue
-        for beta in args.betas:
-            cfg = learn_config(task, args.quick, beta)
-            guarded(rows, task, lambda cfg=cfg: learn(rows, cfg, args.train_s, args.eval_every_s,
-                                                      args.budget_s))  # fmt: skip
+        cfg = learn_config(task, args.quick, args.betas[0])
+        guarded(rows, task, lambda cfg=cfg: learn(rows, cfg, args.betas, args.train_s,
+                                                  args.eval_every_s, args.budget_s))  # fmt: skip
 
 
 def run_bytes(sizes: Sizes, quick: bool) -> tuple[int, int, int]:
@@ -245,7 +252,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--min-task-s", type=float, default=90.0,
                     help="call 1: the budget left that a second task needs to start")
     ap.add_argument("--betas", type=float, nargs="+", default=[1.0],
-                    help="call 1: the arms, one run each (default the TDMPBC term, beta 1)")
+                    help="call 1: the arms, one run each in one sweep program (default the "
+                    "TDMPBC term alone, beta 1; `--betas 1 0` adds plain FastTD3)")
     ap.add_argument("--cache", default=os.environ.get("SIRL_JAX_CACHE_DIR", "/tmp/sirl_jax_xla"))
     args = ap.parse_args(argv)
     q = args.quick
