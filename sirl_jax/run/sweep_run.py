@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import time
 from pathlib import Path
 
 import jax
@@ -108,6 +109,14 @@ class SweepRun:
                 self.ckpts[r].mark_best(env_steps, value, f"eval/{which}_return")
         bar.write(f"eval @ {env_steps:,} ({which} return): " + ", ".join(shown))
 
+    def cost(self, seconds: float, steps: int, left: int) -> str:
+        """The cost line: one chunk's seconds for all runs and per run, and the time left."""
+        r = len(self.names)
+        return (f"cost: {seconds:.3g} s per chunk of {steps:,} env steps for {r} runs, "
+                f"{seconds / r:.3g} s per run ({steps * r / seconds:.4g} env steps/s over the "
+                f"runs); about {prog.format_duration(seconds * left / steps)} to go "
+                "(evaluations and checkpoints not counted)")  # fmt: skip
+
     def loop(self, train, state, logs) -> None:
         t, names = self.config.train, self.names
         step_fn = jax.jit(jax.vmap(train.step), donate_argnums=0)
@@ -116,11 +125,16 @@ class SweepRun:
         means = [prog.MetricMean() for _ in names]
         bar = prog.Progress(t.steps, env_steps, enabled=self.show_progress)
         with prog.StopOnSigint() as stop, contextlib.closing(bar):
+            chunks, costed = 0, False
             while env_steps < t.steps and not stop.requested:
-                before = env_steps
+                before, t0 = env_steps, time.perf_counter()
                 state, metrics = step_fn(state)
                 metrics = jax.device_get(metrics)
-                env_steps = int(metrics["env_steps"][0])
+                env_steps, chunks = int(metrics["env_steps"][0]), chunks + 1
+                if chunks > 1 and not costed and metrics["train/num_updates"].min() > 0:
+                    costed = True  # the first chunk with updates, past the compiling one
+                    bar.write(self.cost(time.perf_counter() - t0, env_steps - before,
+                                        t.steps - env_steps))  # fmt: skip
                 alive = [r for r in range(len(names)) if r not in self.failed]
                 for r in alive:
                     m = prog.host_scalars(_slice(metrics, r))
