@@ -169,3 +169,18 @@ print("MUJOCO_GL at import:", seen)
     assert done.returncode == 0, done.stderr[-2000:]
     line = done.stdout.strip().splitlines()[-1]
     assert line in ("MUJOCO_GL at import: ['osmesa']", "MUJOCO_GL at import: ['egl']"), line
+
+
+def test_solved_report_leaves_mujoco_unimported_until_main_chose_gl():
+    """sit_simple_solved_report --with-video: MuJoCo reads MUJOCO_GL once, at import, so the
+    module must not import it before `main` has chosen the headless backend."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = ("import sys; import experiments.studies.sit_simple_solved_report; "
+              "print('mujoco' in sys.modules)")  # fmt: skip
+    done = subprocess.run([sys.executable, "-c", script], cwd=Path(__file__).parents[1],
+                          capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "False"

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 import tyro
 
-from experiments.studies.parallel_learner import TASK, eval_curves, hours_to
-from sirl_jax.run.reference import reference_curves
+# experiments.studies.parallel_learner (eval_curves, ...) imports MuJoCo: imported in the
+# functions, so that `main` can choose the GL backend first for --with-video
 
 BAR, ZERO_ACTION = 750.0, 647.0  # HumanoidBench's bar; the zero action's return (the issue's)
 ARM_LABELS = {"beta0": ("FastTD3 (beta 0)", "tab:green"),
@@ -33,6 +33,8 @@ def has_evals(arm_dir: Path) -> bool:
 
 
 def summarize(root: Path) -> dict:
+    from experiments.studies.parallel_learner import TASK, eval_curves, hours_to
+
     arms, steps = {}, []
     for arm in ARM_LABELS:
         if not has_evals(root / arm):
@@ -55,6 +57,9 @@ def summarize(root: Path) -> dict:
 
 def figure(root: Path, published: Path, out: Path) -> None:
     import matplotlib
+
+    from experiments.studies.parallel_learner import TASK, eval_curves
+    from sirl_jax.run.reference import reference_curves
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -98,6 +103,7 @@ def video(arm_dir: Path, out: Path, frames: int = 6) -> str:
     import imageio.v2 as imageio
     import jax
 
+    from experiments.studies.parallel_learner import eval_curves
     from sirl_jax.run.checkpoint import Checkpointer
     from sirl_jax.run.render import render_policy
     from sirl_jax.run.runlog import load_config
