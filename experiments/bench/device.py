@@ -48,6 +48,7 @@ if __package__ in (None, ""):  # run as a file: make `experiments` and `sirl_jax
 import jax
 
 from experiments.bench.device_parts import (
+    PAPER_RUN_HOURS,
     QUICK_XLA_FLAGS,
     RUN_STEPS,
     SEEDS,
@@ -57,6 +58,8 @@ from experiments.bench.device_parts import (
     agent_jobs,
     env_seconds,
     matmul_tflops,
+    peak_bytes,
+    run_bytes,
     train_seconds,
 )
 from experiments.paper.common import PAPER_HOURS
@@ -183,8 +186,6 @@ class Bench:
         """R runs of the paper setting (E = 1, UTD 1, SIRL on) as one beta sweep: env steps/s
         per run with the 2M-step cost per run against the paper's; the state's GiB per run at
         the gpu preset's replay (2M transitions), and the device's peak so far."""
-        from experiments.bench.gpu_run import PAPER_RUN_HOURS, peak_bytes, run_bytes
-
         s = self.sizes
         per_run = run_bytes(s, s.tiny)[0]
         for r in s.sweep_runs:

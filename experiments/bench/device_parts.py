@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from experiments.bench.bench_agent import plan_flops, synthetic_batch, update_flops
+from experiments.paper.common import PAPER_HOURS
 from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import VecEnv, load
@@ -28,6 +29,7 @@ from sirl_jax.presets import get_preset
 from sirl_jax.train import make_train
 
 RUN_STEPS, SEEDS = 2_000_000, 3
+PAPER_RUN_HOURS = PAPER_HOURS["walk"][0] / 3  # 37.7 V100-hours for 3 seeds of TDMPBC on walk
 QUICK_XLA_FLAGS = "--xla_backend_optimization_level=0 --xla_llvm_disable_expensive_passes=true"
 
 
@@ -215,3 +217,20 @@ def train_seconds(sizes: Sizes, task: str, num_envs: int, utd: float, sirl: bool
     return float(np.median(times[1:])), first, bad
 
 
+def run_bytes(sizes: Sizes, quick: bool) -> tuple[int, int, int]:
+    """(bytes of one run's train state at the `gpu` preset's replay capacity, of which the
+    replay's, that capacity in transitions), from the state's shapes alone."""
+    cfg = get_preset("smoke" if quick else "gpu")
+    cfg = dataclasses.replace(cfg, agent=sizes.agent)
+    _, env = load(sizes.tasks[0][1])
+    state = jax.eval_shape(make_train(cfg, env).init, jax.random.PRNGKey(0))
+
+    def nbytes(tree) -> int:
+        return int(sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(tree)))
+
+    return nbytes(state), nbytes(state.buffer), cfg.train.capacity
+
+
+def peak_bytes() -> int | None:
+    stats = jax.devices()[0].memory_stats() or {}
+    return stats.get("peak_bytes_in_use")

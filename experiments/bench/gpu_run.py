@@ -39,8 +39,15 @@ if __package__ in (None, ""):  # run as a file: make `experiments` and `sirl_jax
 import jax
 import jax.numpy as jnp
 
-from experiments.bench.device_parts import QUICK_XLA_FLAGS, Sizes, train_seconds
-from experiments.paper.common import PAPER_HOURS
+from experiments.bench.device_parts import (
+    PAPER_RUN_HOURS,
+    QUICK_XLA_FLAGS,
+    RUN_STEPS,
+    Sizes,
+    peak_bytes,
+    run_bytes,
+    train_seconds,
+)
 from sirl_jax.agent import make_agent
 from sirl_jax.config import Config
 from sirl_jax.envs import load
@@ -52,8 +59,6 @@ from sirl_jax.train import make_train
 
 LEARN_TASKS = ("h1hand-sit_simple-v0", "h1hand-stand-v0")
 RUNS = (3, 24, 12, 6)
-RUN_STEPS = 2_000_000
-PAPER_RUN_HOURS = PAPER_HOURS["walk"][0] / 3  # 37.7 V100-hours for 3 seeds of TDMPBC on walk
 
 
 class Rows:
@@ -156,25 +161,6 @@ def call1(rows: Rows, args) -> None:
         cfg = learn_config(task, args.quick, args.betas[0])
         guarded(rows, task, lambda cfg=cfg: learn(rows, cfg, args.betas, args.train_s,
                                                   args.eval_every_s, args.budget_s))  # fmt: skip
-
-
-def run_bytes(sizes: Sizes, quick: bool) -> tuple[int, int, int]:
-    """(bytes of one run's train state at the `gpu` preset's replay capacity, of which the
-    replay's, that capacity in transitions), from the state's shapes alone."""
-    cfg = get_preset("smoke" if quick else "gpu")
-    cfg = dataclasses.replace(cfg, agent=sizes.agent)
-    _, env = load(sizes.tasks[0][1])
-    state = jax.eval_shape(make_train(cfg, env).init, jax.random.PRNGKey(0))
-
-    def nbytes(tree) -> int:
-        return int(sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(tree)))
-
-    return nbytes(state), nbytes(state.buffer), cfg.train.capacity
-
-
-def peak_bytes() -> int | None:
-    stats = jax.devices()[0].memory_stats() or {}
-    return stats.get("peak_bytes_in_use")
 
 
 def call2(rows: Rows, args) -> None:

@@ -17,6 +17,7 @@ checkpoint interval of any run.
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import time
 from pathlib import Path
@@ -39,8 +40,6 @@ SWEEP_FILE = "sweep.json"
 
 def load_sweep(run_dir: Path) -> Sweep:
     """The sweep a sweep directory was trained with (its sweep.json)."""
-    import json
-
     raw = json.loads((run_dir / SWEEP_FILE).read_text())
     return Sweep(int(raw["seeds"]), tuple((f, tuple(vs)) for f, vs in raw["axes"].items()))
 
