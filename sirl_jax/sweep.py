@@ -21,7 +21,7 @@ from collections.abc import Sequence
 import jax
 import jax.numpy as jnp
 
-from sirl_jax.agent.hyper import SWEEPABLE, get, key
+from sirl_jax.agent.hyper import SWEEPABLE, fields, get, init_hyper
 from sirl_jax.config import Config
 
 
@@ -109,7 +109,14 @@ class Sweep:
 
     def configs(self, config: Config) -> list[Config]:
         """Each run's own config: `config` with the run's values and train.seed + its index.
-        Each is checked as a config is (a value out of range raises, naming it)."""
+        Each is checked as a config is (a value out of range raises, naming it), and each
+        swept field must be one `config.agent.kind`'s learner reads."""
+        kind = config.agent.kind
+        for field, _ in self.axes:
+            if field not in fields(kind):
+                raise SweepError(f"--sweep {field} cannot be swept with agent.kind={kind}: that "
+                                 f"learner does not read it; allowed for {kind}: "
+                                 f"{', '.join(fields(kind))}")  # fmt: skip
         out = []
         for point, s in self.runs():
             agent = config.agent
@@ -127,8 +134,7 @@ class Sweep:
         run's values written into `state.agent.hyper`. `train` is built from `config`."""
         configs = self.configs(config)
         keys = jnp.stack([jax.random.PRNGKey(c.train.seed) for c in configs])
-        hyper = {key(f): jnp.array([get(c.agent, f) for c in configs], jnp.float32)
-                 for f in SWEEPABLE}  # fmt: skip
+        hyper = jax.tree.map(lambda *xs: jnp.stack(xs), *[init_hyper(c.agent) for c in configs])
 
         def init():
             state = jax.vmap(train.init)(keys)

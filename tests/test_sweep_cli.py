@@ -103,8 +103,10 @@ def test_the_commands_take_a_run_of_the_sweep_and_refuse_the_sweep(sweeps, tmp_p
     assert cli.main(["eval", str(a), "--episodes", "1"]) == 2
     err = capsys.readouterr().err
     assert f"{a} is a sweep of 4 runs, not one run; give one of them, e.g. {a / NAMES[0]}" in err
-    assert cli.main(["report", str(a), "--out", str(tmp_path / "report")]) == 2
-    assert "is a sweep of 4 runs" in capsys.readouterr().err
+    # report of the sweep: its arms; the trained runs evaluated at 800 and 1,400 env steps
+    assert cli.main(["report", str(a), "--out", str(tmp_path / "sweep.html")]) == 0
+    page = (tmp_path / "sweep.html").read_text()
+    assert "sweep of 4 runs" in page and "<td class=l>beta=1</td><td>2</td>" in page
     assert cli.main(["report", str(a / NAMES[3]), "--out", str(tmp_path / "report")]) == 0
 
 

@@ -203,7 +203,8 @@ def train_seconds(sizes: Sizes, task: str, num_envs: int, utd: float, sirl: bool
     state = jax.jit(jax.vmap(train.init))(jax.random.split(jax.random.PRNGKey(0), seeds))
     if sweep:
         beta = jnp.arange(seeds, dtype=jnp.float32) % 2
-        state = state.replace(agent=state.agent.replace(hyper={"sirl_beta": beta}))
+        hyper = {**state.agent.hyper, "sirl_beta": beta}
+        state = state.replace(agent=state.agent.replace(hyper=hyper))
     state, metrics = jax.block_until_ready(step(state))
     first = time.perf_counter() - t0
     while not bool(np.all(jax.device_get(state.planning))):

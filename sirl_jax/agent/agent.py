@@ -12,8 +12,7 @@ from flax import struct
 
 from sirl_jax.agent import losses
 from sirl_jax.agent.config import AgentConfig
-from sirl_jax.agent.hyper import init_hyper
-from sirl_jax.agent.hyper import key as hyper_key
+from sirl_jax.agent.hyper import Hyper, init_hyper
 from sirl_jax.agent.math import discount_from_episode_length
 from sirl_jax.agent.networks import init_params
 from sirl_jax.agent.planner import PlannerModel, PlannerState, make_planner
@@ -68,8 +67,10 @@ class Agent:
     act: Callable  # (state, acting state, obs, first, key) -> (a[E, A], acting): training's
 
 
-def _wm_optimizer(cfg: AgentConfig) -> optax.GradientTransformation:
-    """One global-norm clip over all world-model params, then Adam; encoder lr x enc_lr_scale."""
+def _wm_optimizer(cfg: AgentConfig, h: Hyper | None = None) -> optax.GradientTransformation:
+    """One global-norm clip over all world-model params, then Adam; encoder lr x enc_lr_scale.
+    h: the run's traced rates (`state.hyper`); None: `cfg`'s (the optimiser state is the same)."""
+    h = Hyper(init_hyper(cfg)) if h is None else h
 
     def labels(params):
         return {
@@ -80,12 +81,12 @@ def _wm_optimizer(cfg: AgentConfig) -> optax.GradientTransformation:
     return optax.chain(
         optax.clip_by_global_norm(cfg.grad_clip_norm),
         optax.multi_transform(
-            {"enc": optax.adam(cfg.lr * cfg.enc_lr_scale), "rest": optax.adam(cfg.lr)}, labels
+            {"enc": optax.adam(h["enc_lr"]), "rest": optax.adam(h["lr"])}, labels
         ),
     )
 
 
-def polyak(target, online, tau: float):
+def polyak(target, online, tau):
     """target <- (1 - tau) * target + tau * online, leaf-wise."""
     return jax.tree_util.tree_map(lambda t, o: (1.0 - tau) * t + tau * o, target, online)
 
@@ -145,10 +146,11 @@ def make_tdmpc2(
         env_chunk = 1 if jax.default_backend() == "cpu" else 0
     wm = make_world_model(cfg, action_size)
     keys = wm_keys(cfg)
-    wm_tx = _wm_optimizer(cfg)
-    pi_tx = optax.chain(
-        optax.clip_by_global_norm(cfg.grad_clip_norm), optax.adam(cfg.lr, eps=cfg.pi_adam_eps)
-    )
+
+    def pi_optimizer(h: Hyper) -> optax.GradientTransformation:
+        return optax.chain(optax.clip_by_global_norm(cfg.grad_clip_norm),
+                           optax.adam(h["lr"], eps=cfg.pi_adam_eps))  # fmt: skip
+
     planner = make_planner(
         cfg,
         action_size,
@@ -167,14 +169,14 @@ def make_tdmpc2(
 
     def init(key: jax.Array) -> AgentState:
         params = init_params(cfg, obs_size, action_size, key)
-        wm_params = {k: params[k] for k in keys}
+        wm_params, h = {k: params[k] for k in keys}, Hyper(init_hyper(cfg))
         return AgentState(
             params=params,
             target_qs=jax.tree_util.tree_map(jnp.copy, params["qs"]),
-            wm_opt_state=wm_tx.init(wm_params),
-            pi_opt_state=pi_tx.init(params["policy"]),
+            wm_opt_state=_wm_optimizer(cfg, h).init(wm_params),
+            pi_opt_state=pi_optimizer(h).init(params["policy"]),
             scale=jnp.ones((), jnp.float32),
-            hyper=init_hyper(cfg),
+            hyper=h.hyper,
         )
 
     sirl_reference = make_sirl_reference(cfg, success_bar)
@@ -187,16 +189,17 @@ def make_tdmpc2(
         r_max: [] the replay buffer's R_max (`Buffer.r_max`); G follows `cfg.sirl.g_source`.
         """
         k_wm, k_pi = jax.random.split(key)
+        h = Hyper(state.hyper)
         wm_params = {k: state.params[k] for k in keys}
         pi_params = state.params["policy"]
         grad_fn = jax.value_and_grad(
             lambda p: losses.world_model_loss(
-                wm, cfg, discount, p, pi_params, state.target_qs, batch, k_wm
+                wm, cfg, discount, p, pi_params, state.target_qs, batch, k_wm, h
             ),
             has_aux=True,
         )
         (wm_loss, (zs, wm_metrics)), wm_grads = grad_fn(wm_params)
-        upd, wm_opt_state = wm_tx.update(wm_grads, state.wm_opt_state, wm_params)
+        upd, wm_opt_state = _wm_optimizer(cfg, h).update(wm_grads, state.wm_opt_state, wm_params)
         wm_params = optax.apply_updates(wm_params, upd)
 
         pi_grad_fn = jax.value_and_grad(
@@ -210,17 +213,17 @@ def make_tdmpc2(
                 batch,
                 sirl_reference(r_max),
                 k_pi,
-                state.hyper[hyper_key("sirl.beta")],
+                h,
             ),
             has_aux=True,
         )
         (pi_loss, (scale, pi_metrics)), pi_grads = pi_grad_fn(pi_params)
-        upd, pi_opt_state = pi_tx.update(pi_grads, state.pi_opt_state, pi_params)
+        upd, pi_opt_state = pi_optimizer(h).update(pi_grads, state.pi_opt_state, pi_params)
         pi_params = optax.apply_updates(pi_params, upd)
 
         new_state = AgentState(
             params={**wm_params, "policy": pi_params},
-            target_qs=polyak(state.target_qs, wm_params["qs"], cfg.tau),
+            target_qs=polyak(state.target_qs, wm_params["qs"], h["tau"]),
             wm_opt_state=wm_opt_state,
             pi_opt_state=pi_opt_state,
             scale=scale,

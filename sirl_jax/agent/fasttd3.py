@@ -34,8 +34,7 @@ from sirl_jax.agent import losses
 from sirl_jax.agent.agent import Agent, check_sizes, make_sirl_reference, polyak
 from sirl_jax.agent.config import AgentConfig
 from sirl_jax.agent.fasttd3_nets import ObsNorm, ReluMLP, project, widths
-from sirl_jax.agent.hyper import init_hyper
-from sirl_jax.agent.hyper import key as hyper_key
+from sirl_jax.agent.hyper import Hyper, init_hyper
 from sirl_jax.types import Batch
 
 sg = jax.lax.stop_gradient
@@ -102,8 +101,12 @@ def make_fasttd3(
     actor = ReluMLP(widths(fc.actor_hidden_dim), A, fc.init_scale, tanh=True)
     critic = ReluMLP(widths(fc.critic_hidden_dim), fc.num_atoms)
     support = jnp.linspace(fc.v_min, fc.v_max, fc.num_atoms)
-    actor_tx = optax.adamw(fc.actor_lr, weight_decay=fc.weight_decay)
-    critic_tx = optax.adamw(fc.critic_lr, weight_decay=fc.weight_decay)
+
+    def adamw(h: Hyper, which: str) -> optax.GradientTransformation:
+        """AdamW at the run's traced rate and decay (`state.hyper`); its state is the same
+        whatever the values, so `init` builds it from the config's."""
+        return optax.adamw(h[f"fasttd3.{which}_lr"], weight_decay=h["fasttd3.weight_decay"])
+
     gammas = fc.gamma ** jnp.arange(n, dtype=jnp.float32)
 
     def normalize(norm: ObsNorm, x):
@@ -123,6 +126,7 @@ def make_fasttd3(
         return jnp.sum(jax.nn.softmax(logits, axis=-1) * support, axis=-1)
 
     def init(key: jax.Array) -> FastTD3State:
+        h0 = Hyper(init_hyper(cfg))
         k_actor, k_critic = jax.random.split(key)
         obs, act = jnp.zeros((1, obs_size)), jnp.zeros((1, obs_size + A))
         params = {
@@ -135,16 +139,16 @@ def make_fasttd3(
         return FastTD3State(
             params=params,
             target_critic=jax.tree_util.tree_map(jnp.copy, params["critic"]),
-            actor_opt_state=actor_tx.init(params["actor"]),
-            critic_opt_state=critic_tx.init(params["critic"]),
+            actor_opt_state=adamw(h0, "actor").init(params["actor"]),
+            critic_opt_state=adamw(h0, "critic").init(params["critic"]),
             obs_norm=ObsNorm.init(obs_size),
             scale=jnp.ones((), jnp.float32),
-            hyper=init_hyper(cfg),
+            hyper=h0.hyper,
         )
 
-    def critic_loss(critic_params, target_critic, actor_params, s0, a0, sn, ret, boot, key):
-        noise = jnp.clip(jax.random.normal(key, a0.shape) * fc.policy_noise,
-                         -fc.noise_clip, fc.noise_clip)  # fmt: skip
+    def critic_loss(critic_params, target_critic, actor_params, s0, a0, sn, ret, boot, key, h):
+        clip = h["fasttd3.noise_clip"]
+        noise = jnp.clip(jax.random.normal(key, a0.shape) * h["fasttd3.policy_noise"], -clip, clip)
         next_action = jnp.clip(actor.apply({"params": actor_params}, sn) + noise, -1.0, 1.0)
         target_probs = jax.nn.softmax(critic_logits(target_critic, sn, next_action), axis=-1)
         proj = jax.vmap(lambda p: project(p, ret, boot, fc.gamma**n, support, fc.v_min,
@@ -189,7 +193,7 @@ def make_fasttd3(
 
         return jax.tree_util.tree_map(split, batch)
 
-    def critic_step(actor_params, carry, xs):
+    def critic_step(actor_params, h, carry, xs):
         """One critic update on one batch, then the target's Polyak step."""
         critic, target, norm, opt = carry
         b, key = xs
@@ -199,26 +203,26 @@ def make_fasttd3(
         ret = jnp.sum(gammas[:, None] * jnp.concatenate(
             [jnp.ones_like(alive[:1]), alive[:-1]]) * b.reward, axis=0)  # fmt: skip
         (_, m), grads = jax.value_and_grad(critic_loss, has_aux=True)(
-            critic, target, actor_params, s0, b.action[0], sn, ret, alive[-1], key)
-        upd, opt = critic_tx.update(grads, opt, critic)
+            critic, target, actor_params, s0, b.action[0], sn, ret, alive[-1], key, h)
+        upd, opt = adamw(h, "critic").update(grads, opt, critic)
         critic = optax.apply_updates(critic, upd)
         m["critic_grad_norm"] = optax.tree.norm(grads)
-        return (critic, polyak(target, critic, fc.tau), norm, opt), (m, s0)
+        return (critic, polyak(target, critic, h["fasttd3.tau"]), norm, opt), (m, s0)
 
     def update(state: FastTD3State, batch: Batch, r_max: jax.Array, key: jax.Array):
         """One update group: P critic updates (each on B transitions, each followed by the
         target's Polyak step) under one `lax.scan`, then one actor update on the last batch
         (module docstring)."""
-        params, grouped = state.params, groups(batch)
+        params, grouped, h = state.params, groups(batch), Hyper(state.hyper)
         carry = (params["critic"], state.target_critic, state.obs_norm, state.critic_opt_state)
         (critic, target, norm, critic_opt), (ms, s0s) = jax.lax.scan(
-            lambda c, xs: critic_step(params["actor"], c, xs), carry,
+            lambda c, xs: critic_step(params["actor"], h, c, xs), carry,
             (grouped, jax.random.split(key, P)))  # fmt: skip
         last = jax.tree_util.tree_map(lambda x: x[-1], grouped)
         (_, (scale, pi_m)), grads = jax.value_and_grad(actor_loss, has_aux=True)(
             params["actor"], critic, state.scale, s0s[-1], last.action[0], last.episode_return,
-            sirl_reference(r_max), state.hyper[hyper_key("sirl.beta")])  # fmt: skip
-        upd, actor_opt = actor_tx.update(grads, state.actor_opt_state, params["actor"])
+            sirl_reference(r_max), h["sirl.beta"])  # fmt: skip
+        upd, actor_opt = adamw(h, "actor").update(grads, state.actor_opt_state, params["actor"])
         params = {**params, "actor": optax.apply_updates(params["actor"], upd), "critic": critic}
         if fc.actor_ema > 0:
             params["actor_ema"] = polyak(params["actor_ema"], params["actor"], fc.actor_ema)
@@ -234,7 +238,9 @@ def make_fasttd3(
     def act(state: FastTD3State, noise: NoiseState, obs, first, key):
         """The actor plus Gaussian noise of each env's std, redrawn at its first step."""
         k_std, k_eps = jax.random.split(key)
-        fresh = jax.random.uniform(k_std, noise.std.shape, minval=fc.std_min, maxval=fc.std_max)
+        h = Hyper(state.hyper)
+        fresh = jax.random.uniform(k_std, noise.std.shape, minval=h["fasttd3.std_min"],
+                                   maxval=h["fasttd3.std_max"])  # fmt: skip
         std = jnp.where(first[:, None], fresh, noise.std)
         mean = mean_action(state, obs)
         action = mean + jax.random.normal(k_eps, mean.shape) * std

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 
 from sirl_jax.agent import math as am
 from sirl_jax.agent.config import AgentConfig, SirlConfig
+from sirl_jax.agent.hyper import Hyper, init_hyper
 from sirl_jax.agent.world_model import (
     LOG_2PI,
     PolicyOutput,
@@ -69,8 +70,11 @@ def world_model_loss(
     target_qs: dict,
     batch: Batch,
     key: jax.Array,
+    h: Hyper | None = None,
 ) -> tuple[jax.Array, tuple[jax.Array, dict]]:
     """L = c_c * L_c + c_r * L_r + c_q * L_q (+ c_d * L_d when episodic) (spec §2.3).
+
+    h: the run's per-run scalars (`state.hyper`; the coefficients); None: `cfg`'s.
 
     L_d = mean over H and B of BCE(termination(z_{t+1}), d_t), t = 0..H-1, on the rollout
     latents z_1..z_H with gradients (unweighted by rho, as in the reference). The metric
@@ -107,7 +111,8 @@ def world_model_loss(
     l_c = jnp.sum(w * consistency) / H
     l_r = jnp.sum(w * reward_ce.mean(axis=1)) / H
     l_q = jnp.sum(w * value_ce.mean(axis=2).sum(axis=0)) / (H * value_ce.shape[0])
-    loss = cfg.consistency_coef * l_c + cfg.reward_coef * l_r + cfg.value_coef * l_q
+    h = Hyper(init_hyper(cfg)) if h is None else h
+    loss = h["consistency_coef"] * l_c + h["reward_coef"] * l_r + h["value_coef"] * l_q
     if cfg.episodic:
         d_logits = wm.termination_logit(params, z_roll)  # [H, B] on z_1..z_H
         l_d = jnp.mean(bce_with_logits(d_logits, batch.terminated.astype(d_logits.dtype)))
@@ -162,32 +167,33 @@ def policy_loss(
     batch: Batch,
     return_ref: jax.Array,
     key: jax.Array,
-    beta: jax.Array | None = None,
+    h: Hyper | None = None,
 ) -> tuple[jax.Array, tuple[jax.Array, dict]]:
     """Policy-prior loss (spec §2.5) plus, when cfg.sirl.enabled, the BC term (spec §5).
 
     Args:
       zs: [H+1, B, Z] detached rollout latents; qs_params: detached, updated online Q params.
       return_ref: [] G of the self-imitative weight (`Agent.sirl_reference`).
-      beta: [] the run's beta (`state.hyper`); None: `cfg.sirl.beta`.
+      h: the run's per-run scalars (`state.hyper`: beta, tau, entropy_coef); None: `cfg`'s.
     Returns:
       loss []; aux = (updated running scale [], metrics).
     """
     k_sample, k_pair, k_drop = jax.random.split(key, 3)
+    h = Hyper(init_hyper(cfg)) if h is None else h
     Hp1 = zs.shape[0]
     A = batch.action.shape[-1]
     w = rho_weights(cfg.rho, Hp1)
     out = wm.pi({"policy": policy_params}, zs, k_sample)  # [H+1, B, A]
     q = wm.q_pair(qs_params, zs, out.action, k_pair, "avg", k_drop)  # [H+1, B], dropout on
-    new_scale = update_scale(scale, sg(q[0]), cfg.tau)  # updated before use
+    new_scale = update_scale(scale, sg(q[0]), h["tau"])  # updated before use
     if cfg.entropy_form == "scaled":
         # -alpha * E with E = -A * l_g (current main; the ratio form's gradient away from l_s=-1e-8)
-        ent_term = cfg.entropy_coef * A * out.log_prob_gauss
+        ent_term = h["entropy_coef"] * A * out.log_prob_gauss
     else:
         # 2023 / HumanoidBench fork: A-scaled Gaussian part, unscaled tanh correction.
         gauss = jnp.sum(-0.5 * out.eps**2 - out.log_std, axis=-1) - 0.5 * LOG_2PI
         tanh_corr = jnp.sum(jnp.log(jnp.maximum(0.0, 1.0 - out.action**2) + 1e-6), axis=-1)
-        ent_term = cfg.entropy_coef * (A * gauss - tanh_corr)
+        ent_term = h["entropy_coef"] * (A * gauss - tanh_corr)
     rl = jnp.sum(w * jnp.mean(ent_term - q / new_scale, axis=1)) / Hp1
     metrics = {
         "pi_rl_loss": rl,
@@ -198,7 +204,7 @@ def policy_loss(
     }
     loss = rl
     if cfg.sirl.enabled:
-        omega = sirl_weight(batch.episode_return, return_ref, cfg.sirl, beta)
+        omega = sirl_weight(batch.episode_return, return_ref, cfg.sirl, h["sirl.beta"])
         bc = bc_term(cfg, out, batch.action, omega)
         bc_loss = jnp.sum(w[:-1] * jnp.mean(bc, axis=1)) / Hp1
         loss = rl + bc_loss

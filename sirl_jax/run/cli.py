@@ -207,10 +207,14 @@ def plot(args: PlotArgs) -> int:
 
 
 def report(args: ReportArgs) -> int:
-    """The `report` command (`report.write_report`): one self-contained HTML page."""
+    """The `report` command (`report.write_report`): one self-contained HTML page; of a
+    sweep directory, the sweep's page (`report_sweep.write_sweep_report`)."""
     from sirl_jax.run.report import write_report
+    from sirl_jax.run.report_sweep import write_sweep_report
 
-    print(f"wrote {write_report(Path(args.run), Path(args.out) if args.out else None)}")
+    run, out = Path(args.run), Path(args.out) if args.out else None
+    write = write_sweep_report if runlog.sweep_runs(run) else write_report
+    print(f"wrote {write(run, out)}")
     return EXIT_OK
 
 
@@ -246,6 +250,7 @@ USAGE = """usage: python -m sirl_jax {train,tasks,eval,render,plot,report,export
          render --random --task NAME: an mp4 of the policy (headless)
   plot   python -m sirl_jax plot RUN_DIR... [--out FILE.png] [--reference]: curves, R_max, scores
   report python -m sirl_jax report RUN_DIR [--out FILE.html]: one self-contained HTML page
+         (of a sweep directory: its arms, mean ± std over seeds)
   export python -m sirl_jax export RUN_DIR [--step N] [--out DIR]: ONNX policy, planner,
          params, scene model and observation/action contract
   sim2sim python -m sirl_jax sim2sim EXPORT_DIR [--episodes 5] [--policy prior|planner|random]:

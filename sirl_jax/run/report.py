@@ -106,17 +106,22 @@ def run_counters(metrics: list[dict], evals: list[dict]) -> dict[str, float]:
     return out
 
 
-def cost_text(metrics: list[dict], starts: list[dict]) -> str:
-    """The measured cost: wall time summed over the run's (re)starts, env steps per second,
-    and the device. `wall_time` restarts from 0 in each process, so each segment's last value
-    counts once."""
+def wall_seconds(metrics: list[dict]) -> float:
+    """Wall time summed over a run's (re)starts: `wall_time` restarts from 0 in each process,
+    so each segment's last value counts once."""
     wall, last = 0.0, 0.0
     for row in metrics:
         t = _number(row.get("wall_time"))
         if t < last:
             wall += last
         last = t if math.isfinite(t) else last
-    wall += last
+    return wall + last
+
+
+def cost_text(metrics: list[dict], starts: list[dict]) -> str:
+    """The measured cost: wall time summed over the run's (re)starts (`wall_seconds`), env
+    steps per second, and the device."""
+    wall = wall_seconds(metrics)
     steps = int(metrics[-1]["env_steps"])
     device = starts[-1].get("devices", ["?"])[0] if starts else "unknown device"
     rate = f", {steps / wall:,.1f} env steps/s" if wall > 0 else ""
@@ -210,5 +215,5 @@ def write_report(run_dir: Path, out: Path | None = None) -> Path:
 
 __all__ = ["NEEDS", "POLICIES", "VIDEO_LIMIT", "Report", "check_run", "checkpoint_steps",
            "cost_text", "data_uri", "eval_rows", "gather", "latest_video", "run_counters",
-           "task_line",
+           "task_line", "wall_seconds",
            "write_report"]  # fmt: skip
