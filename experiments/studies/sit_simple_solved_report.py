@@ -3,10 +3,11 @@
     .venv/bin/python -m experiments.studies.sit_simple_solved_report --recipe transition \
         --results results/sit_simple_solved --out docs/results/sit_simple_solved
 
-summary.json has the keys the write-up promises: task, success_bar, env_steps_per_seed,
+summary.json has exactly the keys the issue asks for: task, success_bar, env_steps_per_seed,
 eval_episodes and, per arm, each seed's final 16-episode return, the mean of its last three
 evaluations, and the wall-clock hours to its first evaluation (after step 0) at the bar (None
-if it never got there); `cpu_hours_to_bar` and `final_steps` come beside them. The figure draws
+if it never got there), seeds in order. details.json holds the rest per arm: which seed each
+entry is, its CPU hours to the bar and the env step of its final evaluation. The figure draws
 each seed against env steps with FastTD3's published curve (fasttd3_published.json, its seeds'
 mean and range) and the published TD-MPC2 curve (`sirl_jax/data/reference_curves.json`).
 """
@@ -32,14 +33,18 @@ def has_evals(arm_dir: Path) -> bool:
     return (arm_dir / "eval.csv").exists() or any(arm_dir.glob("seed*/eval.csv"))
 
 
-def summarize(root: Path) -> dict:
+SUMMARY_KEYS = ("final", "last3_mean", "hours_to_bar")
+
+
+def summarize(root: Path) -> tuple[dict, dict]:
+    """(summary.json, details.json): the issue's keys, and the rest of each arm's figures."""
     from experiments.studies.parallel_learner import TASK, eval_curves, hours_to
 
     arms, steps = {}, []
     for arm in ARM_LABELS:
         if not has_evals(root / arm):
             continue
-        by_seed = eval_curves(root / arm, "policy_return")
+        by_seed = dict(sorted(eval_curves(root / arm, "policy_return").items()))
         curves = by_seed.values()
         arms[arm] = {
             "seeds": list(by_seed),  # the seed of each entry below (seeds may run one by one)
@@ -51,8 +56,11 @@ def summarize(root: Path) -> dict:
         }
         steps += arms[arm]["final_steps"]
     config = json.loads(next(root.glob("**/config.json")).read_text())
-    return {"task": TASK, "success_bar": int(BAR), "env_steps_per_seed": min(steps, default=0),
-            "eval_episodes": config["train"]["eval_episodes"], "arms": arms}  # fmt: skip
+    summary = {"task": TASK, "success_bar": int(BAR), "env_steps_per_seed": min(steps, default=0),
+               "eval_episodes": config["train"]["eval_episodes"],
+               "arms": {a: {k: v[k] for k in SUMMARY_KEYS} for a, v in arms.items()}}
+    details = {a: {k: x for k, x in v.items() if k not in SUMMARY_KEYS} for a, v in arms.items()}
+    return summary, details
 
 
 def figure(root: Path, published: Path, out: Path) -> None:
@@ -147,14 +155,17 @@ def main(recipe: str = "transition", results: Path = Path("results/sit_simple_so
     root = results / recipe
     if not any(has_evals(root / arm) for arm in ARM_LABELS):
         raise SystemExit(f"error: no arm of {root} has an eval.csv yet (run --arm beta1 first)")
-    summary = summarize(root)
+    summary, details = summarize(root)
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    (out / "details.json").write_text(json.dumps(details, indent=1) + "\n")
     figure(root, out / "fasttd3_published.json", out / "figure.png")
     for arm, v in summary["arms"].items():
-        print(f"{arm}: final {v['final']} last3 {v['last3_mean']} at {v['final_steps']} steps; "
-              f"hours to bar {v['hours_to_bar']}")  # fmt: skip
-    print(f"wrote {out / 'summary.json'} and {out / 'figure.png'}")
+        d = details[arm]
+        print(f"{arm}: seeds {d['seeds']} final {v['final']} last3 {v['last3_mean']} at "
+              f"{d['final_steps']} steps; hours to bar {v['hours_to_bar']} (CPU hours "
+              f"{d['cpu_hours_to_bar']})")  # fmt: skip
+    print(f"wrote {out / 'summary.json'}, {out / 'details.json'} and {out / 'figure.png'}")
     if with_video:
         print(f"wrote {out / 'best_seed.mp4'}: {video(root / 'beta1', out)}")
 
