@@ -15,9 +15,9 @@ from mujoco import mjx
 
 from experiments.fidelity.pair_cap import active_contacts
 from sirl_jax.config import Config, TrainConfig
-from sirl_jax.envs import h1, load, physics
-from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, MANIPULATION_BUDGET, budget_for
+from sirl_jax.envs import control_step, h1, load, physics
 from sirl_jax.envs.physics import OVERFLOW_METRIC, contact_budget, contact_profile
+from sirl_jax.envs.task_parts import LOCOMOTION_BUDGET, MANIPULATION_BUDGET, budget_for
 from sirl_jax.run import runlog
 
 BOXES = 3
@@ -84,13 +84,13 @@ def test_budget_is_read_reported_and_left_out_of_warps_sizes():
 @pytest.mark.timeout(300)
 def test_budget_step_flags_only_a_full_budget():
     m = _boxes(4 * BOXES)  # exactly the resting contacts: full
-    step = h1.make_budget_control_step(4 * BOXES, n_substeps=5)
+    step = control_step.make_budget_control_step(4 * BOXES, n_substeps=5)
     mx = mjx.put_model(m)
     d, full = jax.jit(step)(mx, mjx.make_data(mx), jnp.zeros(0))
     assert float(full) == 1.0
     m = _boxes(4 * BOXES + 1)
     mx = mjx.put_model(m)
-    step = h1.make_budget_control_step(4 * BOXES + 1, n_substeps=5)
+    step = control_step.make_budget_control_step(4 * BOXES + 1, n_substeps=5)
     d, full = jax.jit(step)(mx, mjx.make_data(mx), jnp.zeros(0))
     assert float(full) == 0.0
 

@@ -18,52 +18,16 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 import pytest
+from hb_states import forward_c, task_data, task_env, task_of
 
 from sirl_jax.config import TrainConfig
 from sirl_jax.envs import load, make
 from sirl_jax.envs.base import Env, VecEnv, init_state
 from sirl_jax.envs.tasks.manipulation import kitchen as K
 from sirl_jax.envs.tasks.manipulation import truck as T
-from sirl_jax.envs.tasks.manipulation.base import body_id, free_joint_adr
+from sirl_jax.envs.tasks.manipulation.base import free_joint_adr
 from sirl_jax.envs.tasks.manipulation.basketball import CATCH, THROW
 from sirl_jax.hb_compat import HB_COMPAT
-
-_ENVS: dict[str, object] = {}
-
-
-def _env(name: str):
-    """The task's env (default mode), built once per module; `.task.with_hb_compat(mode)`
-    gives either mode's task on the same model (both modes compile the same model)."""
-    if name not in _ENVS:
-        _ENVS[name] = make(name)
-    return _ENVS[name]
-
-
-def _task(name: str, mode: str):
-    return _env(name).task.with_hb_compat(mode)
-
-
-def _forward(env, qpos=None) -> mujoco.MjData:
-    """MuJoCo C data at keyframe 0 (or `qpos`) after `mj_forward`."""
-    m = env.mj_model
-    d = mujoco.MjData(m)
-    mujoco.mj_resetDataKeyframe(m, d, 0)
-    if qpos is not None:
-        d.qpos[:] = qpos
-    mujoco.mj_forward(m, d)
-    return d
-
-
-def _data(d: mujoco.MjData, **extra) -> types.SimpleNamespace:
-    """The fields a task's `evaluate` reads, from MuJoCo C data (no active contact unless
-    `contact` is given)."""
-    no_contact = types.SimpleNamespace(dist=np.ones(1), geom=np.zeros((1, 2), int))
-    fields = dict(qpos=d.qpos, xpos=d.xpos, xmat=d.xmat.reshape(-1, 3, 3), site_xpos=d.site_xpos,
-                  geom_xpos=d.geom_xpos, geom_xmat=d.geom_xmat, actuator_force=d.actuator_force,
-                  contact=no_contact)  # fmt: skip
-    fields.update(extra)
-    return types.SimpleNamespace(**{k: jnp.asarray(v) if isinstance(v, np.ndarray) else v
-                                    for k, v in fields.items()})  # fmt: skip
 
 
 # -- the switch --------------------------------------------------------------------------------
@@ -78,7 +42,7 @@ def test_bad_values_are_refused_naming_the_value_and_the_allowed_ones():
     with pytest.raises(ValueError, match=r"train.hb_compat='hb' is invalid; " + allowed):
         TrainConfig(hb_compat="hb")
     with pytest.raises(ValueError, match=r"hb_compat=None is invalid; " + allowed):
-        _env("kitchen").task.with_hb_compat(None)
+        task_env("kitchen").task.with_hb_compat(None)
 
 
 @pytest.mark.timeout(300)
@@ -94,7 +58,8 @@ def test_the_switch_reaches_the_task_from_the_cli_and_from_load():
     assert args.config.train.hb_compat == "fixed"
     _, env = load_task("kitchen", hb_compat=args.config.train.hb_compat)  # what `build` does
     assert env.task.hb_compat == "fixed" and env.task.strict_order
-    assert _env("kitchen").task.hb_compat == "exact" and not _env("kitchen").task.strict_order
+    kitchen = task_env("kitchen").task
+    assert kitchen.hb_compat == "exact" and not kitchen.strict_order
     spec, _ = load("pendulum", hb_compat="fixed")  # not HumanoidBench's: accepted, unused
     assert not spec.takes_hb_compat
 
@@ -114,7 +79,7 @@ def test_kitchen_pays_work_done_early_only_in_exact_mode():
     kettle = done(obj0, "kettle")
     steps = [obj0, kettle, done(kettle, "microwave")]
     for mode, expected in (("exact", [0.0, 0.0, 2.0]), ("fixed", [0.0, 0.0, 1.0])):
-        task = _task("kitchen", mode)
+        task = task_of("kitchen", mode)
         state = K.kitchen_init_state(jnp.asarray(obj0, jnp.float32))
         rewards = []
         for obj in steps:
@@ -124,127 +89,21 @@ def test_kitchen_pays_work_done_early_only_in_exact_mode():
         assert rewards == expected, mode
 
 
-# -- truck: the constant 1, package accounting ---------------------------------------------------
-@pytest.mark.timeout(120)
-@pytest.mark.parametrize("mode", HB_COMPAT)
-def test_truck_reward_by_hand_on_a_constructed_state(mode):
-    """Torso zz 0.52: upright = 1 - (0.9 - 0.52) / 1.9 = 0.8. The nearest package on the truck
-    2.2 m from the root: 1 - (2.2 - 0.2) / 4 = 0.5; the picked-up one 1.0 m from the root: 0.8,
-    and 3.4 m from the table body: 0.2; one on the table stays there. No event, so the reward is
-    0.8 * (1 + 0.5 + 0.8 + 0.2) = 2.0 in both modes (HumanoidBench's formula, its 1 included)."""
-    env = _env("truck")
-    task = env.task.with_hb_compat(mode)
-    m = env.mj_model
-    d = _forward(env)
-    root = np.array([0.0, 0.0, 1.0])
-    where = {"package_a": root + [2.2, 0, 0], "package_b": root + [3.0, 0, 0],
-             "package_c": (10.0, 0.0, 1.0), "package_d": root + [0, 1.0, 0],
-             "package_e": (2.0, -1.7, 0.95)}  # fmt: skip
-    xpos = d.xpos.copy()
-    for name, pos in where.items():
-        xpos[body_id(m, name)] = pos
-    xpos[body_id(m, "table")] = where["package_d"] + np.array([0.0, 3.4, 0.0])
-    xmat = np.tile(np.eye(3), (m.nbody, 1, 1))
-    xmat[body_id(m, "torso_link"), 2, 2] = 0.52
-    qpos = d.qpos.copy()
-    qpos[:3] = root
-    _, state = task.init(jax.random.PRNGKey(0), jnp.asarray(qpos))
-    state = {**state, "status": jnp.array([T.ON_TRUCK] * 3 + [T.PICKED_UP, T.ON_TABLE])}
-    data = _data(d, xpos=xpos, xmat=xmat, qpos=qpos)
-    reward, done, state, terms = task.evaluate(env.robot, data, state)
-    np.testing.assert_allclose(float(reward), 2.0, atol=1e-5)
-    np.testing.assert_allclose([float(terms[k]) for k in ("upright", "reward_robot_package_truck",
-                                "reward_robot_package_picked_up", "reward_package_table")],
-                               [0.8, 0.5, 0.8, 0.2], atol=1e-5)  # fmt: skip
-    assert not bool(done) and np.asarray(state["status"]).tolist() == [0, 0, 0, 1, 2]
-
-
-def _packages(lifted, upon) -> np.ndarray:
-    """[5, 3] package positions: over the table or on the truck, 0.2 up if lifted."""
-    return np.array([(2.0, -1.7, 1.1 + 0.2 * l) if u else (5.0, 0.0, 1.1 + 0.2 * l)
-                     for l, u in zip(lifted, upon, strict=True)])  # fmt: skip
-
-
-@functools.cache
-def _truck_events(exact: bool):
-    """The events of a step (upright 0 and nothing near: the reward is the events alone)."""
-
-    def events(packages, lists, z0):
-        far = jnp.array([100.0, 0.0, 1.0])
-        return T.truck_reward(jnp.asarray(-1.0), far, -far, packages, lists, z0, exact)[:2]
-
-    return jax.jit(events)
-
-
-def _truck_rewards(steps, exact: bool) -> list[float]:
-    lists, z0, out = T.truck_lists(), None, []
-    for lifted, upon in steps:
-        packages = _packages(lifted, upon)
-        z0 = packages[:, 2] if z0 is None else z0
-        r, lists = _truck_events(exact)(jnp.asarray(packages), lists, jnp.asarray(z0))
-        out.append(float(r))
-    return out
-
-
-def _hb_truck(steps) -> list[float]:
-    """HumanoidBench's `Truck.get_reward` event loops, on Python lists as it runs them, and its
-    success bonus."""
-    on_truck, picked, on_table, z0, out = [0, 1, 2, 3, 4], [], [], None, []
-    for lifted, upon in steps:
-        z = _packages(lifted, upon)[:, 2]
-        z0 = z if z0 is None else z0
-        r = 0
-        for p in on_truck:
-            if z[p] > z0[p] + 0.1:
-                picked.append(p)
-                on_truck.remove(p)
-                r += 100
-        for p in picked:
-            if upon[p]:
-                on_table.append(p)
-                picked.remove(p)
-                r += 100
-        for p in on_table:
-            if not upon[p]:
-                on_table.remove(p)
-                picked.append(p)
-                r -= 100
-        out.append(float(r + 1000 * (len(on_table) == 5)))
-    return out
-
-
-@pytest.mark.timeout(120)
-def test_truck_loops_skip_the_package_after_a_moved_one_only_in_exact_mode():
-    """Packages a, b, d lifted in one step: HumanoidBench's loop moves a, skips b, moves d (+200),
-    and b the next step (+100). Over the table: a placed, d skipped, b placed (+200), then d
-    (+100). Taken off: a, skips b, d (-200). Fixed mode moves all three each time."""
-    none, abd = [0] * 5, [1, 1, 0, 1, 0]
-    steps = [(none, none), (abd, none), (abd, none), (abd, abd), (abd, abd), (abd, none)]
-    assert _truck_rewards(steps, exact=True) == [0, 200, 100, 200, 100, -200]
-    assert _truck_rewards(steps, exact=False) == [0, 300, 0, 300, 0, -300]
-    assert _hb_truck(steps) == [0, 200, 100, 200, 100, -200]
-    rng = np.random.default_rng(0)
-    for _ in range(12):  # random walks against the transcription of HumanoidBench's loops
-        steps = [(none, none)] + [(rng.integers(0, 2, 5).tolist(), rng.integers(0, 2, 5).tolist())
-                                  for _ in range(7)]  # fmt: skip
-        assert _truck_rewards(steps, exact=True) == _hb_truck(steps), steps
-
-
 # -- state carried across resets: truck's lists, spoon's counter ---------------------------------
 @pytest.mark.timeout(120)
 def test_carry_keeps_the_previous_episode_state_only_in_exact_mode():
     previous = {**T.truck_lists(), "status": jnp.array([1, 2, 0, 0, 0]),
                 "z0": jnp.arange(5.0)}  # fmt: skip
     fresh = {**T.truck_lists(), "z0": jnp.full(5, jnp.nan)}
-    kept = _task("truck", "exact").carry(previous, fresh)
+    kept = task_of("truck", "exact").carry(previous, fresh)
     assert np.asarray(kept["status"]).tolist() == [1, 2, 0, 0, 0]
     assert np.asarray(kept["z0"]).tolist() == [0, 1, 2, 3, 4]
-    assert _task("truck", "fixed").carry(previous, fresh) is fresh
+    assert task_of("truck", "fixed").carry(previous, fresh) is fresh
     spoon = {"phase": jnp.int32(13), "shown": jnp.int32(12)}
     zero = {"phase": jnp.int32(0), "shown": jnp.int32(0)}
-    exact = _task("spoon", "exact").carry(spoon, zero)
+    exact = task_of("spoon", "exact").carry(spoon, zero)
     assert (int(exact["phase"]), int(exact["shown"])) == (13, 13)
-    assert _task("spoon", "fixed").carry(spoon, zero) is zero
+    assert task_of("spoon", "fixed").carry(spoon, zero) is zero
 
 
 class _CarryEnv(Env):
@@ -282,7 +141,7 @@ def test_spoon_reset_after_an_episode_shows_the_carried_phase():
     """HumanoidEnv.reset_next on spoon (exact mode, one compile): the reset observation shows
     the target of the phase the previous episode left (13: angle 13 * 2 pi / 40), and the task
     state starts there (fixed mode's `carry` returns the fresh state: the test above)."""
-    env = _env("spoon")
+    env = task_env("spoon")
     previous = types.SimpleNamespace(task={"phase": jnp.int32(13), "shown": jnp.int32(12)})
     a = 13 * 2 * math.pi / 40
     target = np.array([0.75, -0.1, 0.95]) + 0.06 * np.array([math.cos(a), math.sin(a), 0.0])
@@ -301,14 +160,14 @@ def _noisy_keyframe(env, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.timeout(120)
 def test_window_starts_from_zero_quaternions_only_in_exact_mode():
-    env = _env("window")
+    env = task_env("window")
     m = env.mj_model
     tool = free_joint_adr(m, "free_window_wiping_tool")[0] + 3
     ball = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL]
     assert len(ball) == 1
     quats = [*range(tool, tool + 4), *range(m.jnt_qposadr[ball[0]], m.jnt_qposadr[ball[0]] + 4)]
     qpos_in, noise = _noisy_keyframe(env)
-    out = {mode: np.asarray(_task("window", mode).init(jax.random.PRNGKey(0), qpos_in)[0])
+    out = {mode: np.asarray(task_of("window", mode).init(jax.random.PRNGKey(0), qpos_in)[0])
            for mode in HB_COMPAT}  # fmt: skip
     np.testing.assert_allclose(out["exact"][quats], noise[quats], atol=1e-6)  # 0 + noise
     np.testing.assert_allclose(out["fixed"][quats], [1, 0, 0, 0] * 2 + noise[quats], atol=1e-6)
@@ -318,7 +177,7 @@ def test_window_starts_from_zero_quaternions_only_in_exact_mode():
 
 @pytest.mark.timeout(120)
 def test_room_reset_writes_and_quaternions_only_in_exact_mode():
-    env = _env("room")
+    env = task_env("room")
     m = env.mj_model
     names = ("chair", "trophy", "headphone", "package_a", "package_b", "snow_globe")
     adr = {n: free_joint_adr(m, f"free_{n}")[0] for n in names}
@@ -331,8 +190,8 @@ def test_room_reset_writes_and_quaternions_only_in_exact_mode():
     for seed in range(4):
         qpos_in, noise = _noisy_keyframe(env, seed)
         key = jax.random.PRNGKey(seed)
-        exact = np.asarray(_task("room", "exact").init(key, qpos_in)[0])
-        fixed = np.asarray(_task("room", "fixed").init(key, qpos_in)[0])
+        exact = np.asarray(task_of("room", "exact").init(key, qpos_in)[0])
+        fixed = np.asarray(task_of("room", "fixed").init(key, qpos_in)[0])
         for n in names:
             a = adr[n]
             np.testing.assert_array_equal(exact[a : a + 2], fixed[a : a + 2])  # same x, y
@@ -354,10 +213,10 @@ def test_room_reset_writes_and_quaternions_only_in_exact_mode():
 def test_room_exact_reset_steps_finite_in_mujoco_c():
     """The thrown finger and the zero-quaternion objects: 0.5 s of MuJoCo C from an exact reset
     stays finite, and the finger is pushed back toward its range (0 to 1.57 rad)."""
-    env = _env("room")
+    env = task_env("room")
     qpos_in, _ = _noisy_keyframe(env)
-    qpos = np.asarray(_task("room", "exact").init(jax.random.PRNGKey(1), qpos_in)[0], np.float64)
-    d = _forward(env, qpos)
+    qpos = np.asarray(task_of("room", "exact").init(jax.random.PRNGKey(1), qpos_in)[0], np.float64)
+    d = forward_c(env, qpos)
     start = d.qpos[69]
     d.ctrl[:] = np.asarray(env.robot.action_to_ctrl(env.robot.keyframe_action))
     for _ in range(250):
@@ -373,31 +232,31 @@ def test_basketball_ball_on_a_leg_ends_the_catch_stage_only_in_exact_mode():
     capsule, a contact MuJoCo C does not report here (the ball does not touch the legs);
     HumanoidBench's rule (any ball contact) ends the catch stage, fixed mode's does not. Far
     from the robot neither does; an active ball contact (the floor) ends it in both modes."""
-    hb = _env("basketball")  # HumanoidBench's contact set: the ball touches the shin
+    hb = task_env("basketball")  # HumanoidBench's contact set: the ball touches the shin
     env = make("basketball", contact_set="reduced")  # where it does not
     m = env.mj_model
     ball_adr = free_joint_adr(m, "free_basketball")[0]
     ball = m.geom("basketball_collision").id
-    d = _forward(env)
+    d = forward_c(env)
     shin = d.geom("left_shin").xpos.copy()
     qpos = d.qpos.copy()
     qpos[ball_adr : ball_adr + 3] = shin + np.array([0.1, 0.0, 0.0])
     shin_id = hb.mj_model.geom("left_shin").id
-    touching = _forward(hb, qpos)
+    touching = forward_c(hb, qpos)
     assert {shin_id, ball} in [set(pair) for pair in touching.contact.geom[: touching.ncon]]
-    d = _forward(env, qpos)
+    d = forward_c(env, qpos)
     assert not (d.contact.geom[: d.ncon] == ball).any()  # no contact with the ball in MuJoCo C
     state = {"stage": jnp.int32(CATCH), "angle": jnp.float32(0.0)}
-    stage = {mode: int(_task("basketball", mode).evaluate(env.robot, _data(d), state)[2]["stage"])
-             for mode in HB_COMPAT}  # fmt: skip
+    stage = {m: int(task_of("basketball", m).evaluate(env.robot, task_data(d), state)[2]["stage"])
+             for m in HB_COMPAT}  # fmt: skip
     assert stage == {"exact": THROW, "fixed": CATCH}
     qpos[ball_adr : ball_adr + 3] = (1.5, 0.0, 1.5)
-    far = _data(_forward(env, qpos))
+    far = task_data(forward_c(env, qpos))
     for mode in HB_COMPAT:
-        assert int(_task("basketball", mode).evaluate(env.robot, far, state)[2]["stage"]) == CATCH
+        assert int(task_of("basketball", mode).evaluate(env.robot, far, state)[2]["stage"]) == CATCH
         floor = types.SimpleNamespace(dist=jnp.array([-1e-3]), geom=jnp.array([[0, ball]]))
         hit = types.SimpleNamespace(**{**vars(far), "contact": floor})
-        assert int(_task("basketball", mode).evaluate(env.robot, hit, state)[2]["stage"]) == THROW
+        assert int(task_of("basketball", mode).evaluate(env.robot, hit, state)[2]["stage"]) == THROW
 
 
 # -- insert_small: the peg_b site ------------------------------------------------------------------
@@ -406,6 +265,6 @@ def test_insert_peg_sites_at_humanoidbench_heights():
     """HumanoidBench's XMLs: insert_normal's peg sites 0.01 above the peg origin; insert_small's
     peg_a 0.005 and peg_b 0.01."""
     for name, (z_a, z_b) in (("insert_normal", (0.01, 0.01)), ("insert_small", (0.005, 0.01))):
-        m = _env(name).mj_model
+        m = task_env(name).mj_model
         np.testing.assert_allclose(m.site("peg_a").pos, (0, 0, z_a), atol=1e-9)
         np.testing.assert_allclose(m.site("peg_b").pos, (0, 0, z_b), atol=1e-9)

@@ -9,7 +9,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from experiments.fidelity.hb_parity import GAP_MAX, OurGap, deepest, merge, tables
+from experiments.fidelity.hb_contacts import GAP_MAX, OurGap, deepest, tables
+from experiments.fidelity.hb_ours import merge
 
 XML = """
 <mujoco>

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from mujoco import mjx
 
-from sirl_jax.envs import h1
+from sirl_jax.envs import control_step, h1
 
 pytestmark = pytest.mark.timeout(120)  # per test; the MJX tests below set their own
 
@@ -203,7 +203,7 @@ def test_limp_robot_falls(hand_model):
 def mjx_setup(hand_model):
     robot = h1.Robot(hand_model)
     mx = mjx.put_model(hand_model)
-    stepper = h1.make_control_step()
+    stepper = control_step.make_control_step()
     step = jax.jit(lambda d, ctrl: stepper(mx, d, ctrl))
     return robot, mx, step
 

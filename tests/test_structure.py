@@ -1,4 +1,5 @@
-"""Where decisions live: the core never imports the shell, and task names load in one place."""
+"""Where decisions live: the core never imports the shell, task names load in one place, no
+import circles, and no file over 350 lines."""
 
 from __future__ import annotations
 
@@ -103,3 +104,17 @@ def test_no_import_circles():
         if m not in state:
             visit(m, [m])
     assert not cycles, f"import circles: {cycles}"
+
+
+MAX_LINES = 350
+
+
+def test_no_python_file_is_longer_than_350_lines():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    files = [p for d in ("sirl_jax", "tests", "experiments") for p in (root / d).rglob("*.py")]
+    assert len(files) > 100  # the scan sees the tree
+    long = {str(p.relative_to(root)): n for p in files
+            if (n := len(p.read_text().splitlines())) > MAX_LINES}  # fmt: skip
+    assert not long, f"files over {MAX_LINES} lines: {long}"

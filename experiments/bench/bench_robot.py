@@ -30,6 +30,7 @@ import numpy as np
 from mujoco import mjx, rollout
 
 from sirl_jax.envs import h1
+from sirl_jax.envs.control_step import make_control_step
 from sirl_jax.envs.physics import Physics, Simulator, warp_unavailable
 from sirl_jax.run.compile_cache import enable_compilation_cache
 
@@ -64,7 +65,7 @@ def bench_mjx(
     d0 = h1.keyframe_data(model, mx, sim=sim)
     # vmap, not broadcast_to: MJX-Warp's data keeps its shared (contact pool) fields unbatched
     batch = jax.jit(jax.vmap(lambda _: d0))(jnp.zeros(n_envs))
-    control_step = h1.make_control_step()
+    control_step = make_control_step()
 
     def one(mx, d, c):  # Warp's shared contact pool goes in and out around the step
         return sim.detach_pool(control_step(mx, sim.attach_pool(d), c))
@@ -99,7 +100,7 @@ def compile_seconds(model) -> float:
     pointed at a fresh directory (run `--compile-only` in a child process to get a cold number)."""
     mx = mjx.put_model(model)
     d0 = h1.keyframe_data(model, mx)
-    stepper = h1.make_control_step()
+    stepper = make_control_step()
     step = jax.jit(lambda d, c: stepper(mx, d, c))
     t0 = time.perf_counter()
     step.lower(d0, d0.ctrl).compile()

@@ -54,328 +54,59 @@ from __future__ import annotations
 
 import argparse
 import collections
-import dataclasses
-import itertools
 import json
 import subprocess
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import jax
-import jax.numpy as jnp
 import mujoco
 import numpy as np
-from mujoco import mjx
 
-from experiments.fidelity.hb_side import joint_key, model_tables
+from experiments.fidelity.hb_contacts import (
+    BAR_CLASSES,
+    CLASSES,
+    OurGap,
+    classify,
+    contact_class,
+    deepest,
+    mm_stats,
+    our_contacts,
+    roles,
+    tables,
+)
+from experiments.fidelity.hb_ours import (
+    HIDDEN,
+    RENAME,
+    diff_stats,
+    draw_states,
+    merge,
+    our_rewards,
+    print_table,
+)
+from experiments.fidelity.hb_side import joint_key
 from sirl_jax.envs import load
 from sirl_jax.envs.loading import spec as task_spec
 from sirl_jax.hb_compat import CONTACT_SETS, HAND_FLOOR, HB
 from sirl_jax.run.compile_cache import enable_compilation_cache
 
 HB_SIDE = Path(__file__).with_name("hb_side.py")
-RENAME: dict[str, dict[str, str]] = {}
-"""Per-task joint renames, our name -> HumanoidBench's. Empty: the H1's joints and the objects'
-free joints of the tasks checked so far carry the same names in both models."""
 
 
-def _leaves(task) -> np.ndarray:
-    """The whole batched task state as [n, k]."""
-    leaves = jax.tree.leaves(task)
-    return np.concatenate([np.asarray(x, np.float64).reshape(len(x), -1) for x in leaves], 1)
-
-
-def _same_stage(task, stage: int):
-    """The batched task state with every leaf set to `stage` (maze: the stage is all of it)."""
-    return jax.tree.map(lambda x: np.full_like(x, stage), task)
-
-
-def _with(key: str):
-    """(task state dict, stage) -> the same dict with `key` set to the stage on every state."""
-    return lambda task, stage: {**task, key: np.full_like(task[key], stage)}
-
-
-@dataclasses.dataclass(frozen=True)
-class Transfer:
-    """How a task's state reaches HumanoidBench (hb_side.py's `hidden_kind`), and its stages."""
-
-    kind: str
-    pick: Callable[[Any], np.ndarray] = _leaves
-    """Our batched task state -> the [n, k] values hb_side writes."""
-    stages: tuple[int, ...] = ()
-    """Stages forced in turn on every state, both sides, each scored separately."""
-    force: Callable[[Any, int], Any] = _same_stage
-    """(our batched task state, stage) -> the task state with that stage."""
-
-
-HIDDEN: dict[str, Transfer] = {
-    "push": Transfer("attr:goal"),
-    "cube": Transfer("body_quat:target_cube"),
-    "reach": Transfer("attr:goal"),
-    "maze": Transfer("maze_stage", stages=(0, 1, 2, 3, 4)),
-    # HumanoidBench keeps the destination as the body's position (z 0; the site sits 0.35 up)
-    "package": Transfer("body_pos:package_destination",
-                        pick=lambda t: np.concatenate([t[:, :2], np.zeros((len(t), 1))], 1)),
-    "window": Transfer("attr:head_pos0"),
-    "spoon": Transfer("attr:step_counter", pick=lambda t: np.asarray(t["phase"])[:, None]),
-    # bookshelf: the stage (`task_index`); hard also its drawn objects and goals, simple keeps
-    # HumanoidBench's own fixed order, so that ours is checked against it
-    "bookshelf_simple": Transfer("bookshelf", pick=lambda t: np.asarray(t["index"])[:, None],
-                                 stages=(0, 1, 2, 3, 4), force=_with("index")),
-    "bookshelf_hard": Transfer("bookshelf", pick=lambda t: np.concatenate(
-        [np.asarray(t["order"], np.float64), np.asarray(t["goals"]).reshape(len(t["goals"]), -1),
-         np.asarray(t["index"])[:, None]], 1), stages=(0, 1, 2, 3, 4), force=_with("index")),
-    "basketball": Transfer("basketball_stage", pick=lambda t: np.asarray(t["stage"])[:, None],
-                           stages=(0, 1), force=_with("stage")),
-}  # fmt: skip
-"""Where HumanoidBench keeps the task state that ours carries (see hb_side.py)."""
-ROBOT_ROOT, HANDS, FLOOR = "pelvis", ("left_hand", "right_hand"), "floor"
-FALL_Z = 0.5
 BAR_AGREEMENT, BAR_MEDIAN, BAR_P95 = 0.99, 0.005, 0.02
-CLASSES = ("robot-static", "hand-object", "object-object",
-           "robot-floor", "robot-object", "object-static", "object-floor")  # fmt: skip
-BAR_CLASSES = ("robot-static", "hand-object", "object-object")
 
 
 # -- roles and contact classes, one function for both models --------------------------------
-def tables(m: mujoco.MjModel) -> dict[str, np.ndarray]:
-    """The model tables `roles` reads, as hb_side.py writes them for HumanoidBench's model."""
-    return model_tables(mujoco, m)
-
-
-def roles(t: dict[str, np.ndarray]) -> tuple[list[str], list[str]]:
-    """([ngeom] role, [ngeom] label): role in {hand, robot, object, floor, static}; label =
-    the body name, or the geom name for a geom welded to the world."""
-    names = [str(x) for x in t["body_name"]]
-    parent = t["body_parent"]
-
-    def under(b: int, roots: set[int]) -> bool:
-        while b > 0:
-            if b in roots:
-                return True
-            b = int(parent[b])
-        return False
-
-    robot = {names.index(ROBOT_ROOT)}
-    hands = {names.index(h) for h in HANDS}
-    objects = {b for b in range(len(names)) if t["body_free"][b] and b not in robot}
-    out_role, out_label = [], []
-    for g, (gname, b) in enumerate(zip(t["geom_name"], t["geom_body"], strict=True)):
-        b, gname = int(b), str(gname)
-        if under(b, hands):
-            role = "hand"
-        elif under(b, robot):
-            role = "robot"
-        elif under(b, objects):
-            role = "object"
-        elif gname == FLOOR or (b == 0 and t["geom_type"][g] == mujoco.mjtGeom.mjGEOM_PLANE):
-            role = "floor"
-        else:
-            role = "static"
-        out_role.append(role)
-        welded = int(t["body_weldid"][b]) == 0
-        out_label.append((gname or f"geom{g}") if welded else names[b])
-    return out_role, out_label
-
-
-def contact_class(r1: str, r2: str) -> str | None:
-    a, b = sorted((r1, r2))
-    pair = {a, b}
-    if pair == {"hand", "object"}:
-        return "hand-object"
-    if a == b == "object":
-        return "object-object"
-    if "object" in pair:
-        other = (pair - {"object"}).pop()
-        return {"robot": "robot-object", "static": "object-static", "floor": "object-floor"}.get(
-            other
-        )
-    if pair & {"hand", "robot"}:
-        other = pair - {"hand", "robot"}
-        if other == {"static"}:
-            return "robot-static"
-        if other == {"floor"}:
-            return "robot-floor"
-    return None  # robot-robot, static-floor, ...
-
-
-def classify(t, state, g1, g2, n):
-    """({class: [n] bool fired}, {class: [n] Counter of label pairs})."""
-    role, label = roles(t)
-    fired = {c: np.zeros(n, bool) for c in CLASSES}
-    pairs = {c: [collections.Counter() for _ in range(n)] for c in CLASSES}
-    for i, a, b in zip(state, g1, g2, strict=True):
-        c = contact_class(role[a], role[b])
-        if c is None:
-            continue
-        fired[c][i] = True
-        pairs[c][i]["|".join(sorted((label[a], label[b])))] += 1
-    return fired, pairs
 
 
 # -- our side ---------------------------------------------------------------------------------
-def draw_states(env, n: int, every: int, episode_steps: int, seed: int):
-    """(qpos [n, nq], qvel [n, nv], ctrl [n, nu], task state tree [n, ...], episodes)."""
-    m = env.mj_model
-    d = mujoco.MjData(m)
-    low, high = m.actuator_ctrlrange[:, 0], m.actuator_ctrlrange[:, 1]
-    rng = np.random.default_rng(seed)
-    reset = jax.jit(jax.vmap(env.reset))
-    batch, key = 64, jax.random.PRNGKey(seed)
-    rows, task_rows, episodes = [], [], 0
-    while len(rows) < n:
-        key, sub = jax.random.split(key)
-        starts = reset(jax.random.split(sub, batch))
-        qpos0 = np.asarray(starts.physics.qpos, np.float64)
-        for e in range(batch):
-            if len(rows) >= n:
-                break
-            episodes += 1
-            mujoco.mj_resetData(m, d)
-            d.qpos[:] = qpos0[e]
-            for step in range(episode_steps):
-                d.ctrl[:] = low + (rng.uniform(-1, 1, m.nu) + 1) / 2 * (high - low)
-                mujoco.mj_step(m, d, nstep=10)
-                if step % every == every - 1:
-                    rows.append((d.qpos.copy(), d.qvel.copy(), d.ctrl.copy()))
-                    task_rows.append(jax.tree.map(lambda x, e=e: np.asarray(x[e]), starts.task))
-                if len(rows) >= n or d.qpos[2] < FALL_Z or not np.isfinite(d.qpos).all():
-                    break
-    qpos, qvel, ctrl = (np.stack([r[k] for r in rows]) for k in range(3))
-    task = jax.tree.map(lambda *xs: np.stack(xs), *task_rows)
-    return qpos, qvel, ctrl, task, episodes
-
-
-def our_rewards(env, qpos, qvel, ctrl, task, chunk: int = 250):
-    """[n] reward, [n] terminated, {metric: [n]} from `env.task.evaluate` after `mjx.forward`."""
-    mx = env.mx
-
-    @jax.jit
-    def score(qp, qv, u, ts):
-        def one(qp, qv, u, ts):
-            d = mjx.make_data(mx).replace(qpos=qp, qvel=qv, ctrl=u)
-            d = mjx.forward(mx, d)
-            reward, terminated, _, metrics = env.task.evaluate(env.robot, d, ts)
-            return reward, terminated, metrics
-
-        return jax.vmap(one)(qp, qv, u, ts)
-
-    n = len(qpos)
-    pad = (-n) % chunk
-    padded = [np.concatenate([x, np.repeat(x[-1:], pad, 0)]) for x in (qpos, qvel, ctrl)]
-    task = jax.tree.map(lambda x: np.concatenate([x, np.repeat(x[-1:], pad, 0)]), task)
-    outs = []
-    for i in range(0, n + pad, chunk):
-        part = [jnp.asarray(x[i : i + chunk], jnp.float32) for x in padded]
-        ts = jax.tree.map(lambda x, i=i: jnp.asarray(x[i : i + chunk]), task)
-        outs.append(jax.device_get(score(*part, ts)))
-    reward = np.concatenate([o[0] for o in outs])[:n]
-    terminated = np.concatenate([o[1] for o in outs])[:n]
-    metrics = {k: np.concatenate([o[2][k] for o in outs])[:n] for k in outs[0][2]}
-    return reward, terminated, metrics
-
-
-def our_contacts(m: mujoco.MjModel, qpos, qvel, ctrl):
-    """(state, geom1, geom2, dist) of every contact of every state, MuJoCo C on our model."""
-    d = mujoco.MjData(m)
-    state, g1, g2, dist = [], [], [], []
-    for i in range(len(qpos)):
-        d.qpos[:], d.qvel[:], d.ctrl[:] = qpos[i], qvel[i], ctrl[i]
-        mujoco.mj_forward(m, d)
-        for c in d.contact[: d.ncon]:
-            state.append(i)
-            g1.append(int(c.geom1))
-            g2.append(int(c.geom2))
-            dist.append(float(c.dist))
-    return state, g1, g2, dist
 
 
 # -- why a state disagrees: how deep, how far -------------------------------------------------
-GAP_MAX = 0.25
-"""Our gap is measured up to this many metres (`mj_geomDistance`'s distmax)."""
-
-
-def deepest(t, state, g1, g2, dist, n) -> dict[str, np.ndarray]:
-    """{class: [n] deepest penetration (m, >= 0; nan where the class has no contact)}."""
-    role, _ = roles(t)
-    out = {c: np.full(n, np.nan) for c in CLASSES}
-    for i, a, b, x in zip(state, g1, g2, dist, strict=True):
-        c = contact_class(role[a], role[b])
-        if c is not None:
-            out[c][i] = np.fmax(out[c][i], -x)
-    return out
-
-
-class OurGap:
-    """Where HumanoidBench's model touches and ours does not: how far apart our colliders are.
-
-    HumanoidBench's contact (geom A, geom B) maps to our geoms by body: a robot or hand geom to
-    our geoms on the body of the same name, an object geom to our object of the same body name,
-    the floor to our floor, a fixture or obstacle geom to our geom of the same name, else to
-    every fixture or obstacle geom of ours. Of those pairs, only the ones our contact bits let
-    collide count (contype / conaffinity; parent-child and welded pairs are already apart in
-    the robot-versus-world classes measured here). Gap = the smallest `mj_geomDistance` among
-    them; None where no pair may collide (our contact set leaves the pair out)."""
-
-    def __init__(self, m: mujoco.MjModel, hb_tables: dict[str, np.ndarray]):
-        self.m, self.d = m, mujoco.MjData(m)
-        ours = tables(m)
-        self.role, _ = roles(ours)
-        self.hb_role, _ = roles(hb_tables)
-        body = [str(ours["body_name"][b]) for b in ours["geom_body"]]
-        self.by_body = collections.defaultdict(list)
-        self.by_name = {str(n): g for g, n in enumerate(ours["geom_name"]) if str(n)}
-        self.by_role = collections.defaultdict(list)
-        for g in range(m.ngeom):
-            if m.geom_contype[g] or m.geom_conaffinity[g]:
-                self.by_body[body[g]].append(g)
-                self.by_role[self.role[g]].append(g)
-        self.hb_body = [str(hb_tables["body_name"][b]) for b in hb_tables["geom_body"]]
-        self.hb_name = [str(x) for x in hb_tables["geom_name"]]
-
-    def _ours(self, g: int) -> list[int]:
-        role = self.hb_role[g]
-        if role in ("robot", "hand", "object"):
-            mine = self.by_body.get(self.hb_body[g], [])
-            return mine if mine or role != "object" else self.by_role["object"]
-        mine = self.by_name.get(self.hb_name[g])
-        if mine is not None and self.role[mine] == role:
-            return [mine]
-        return self.by_role[role]
-
-    def __call__(self, qpos: np.ndarray, hb_pairs: list[tuple[int, int]]) -> float | None:
-        m, d = self.m, self.d
-        d.qpos[:] = qpos
-        mujoco.mj_kinematics(m, d)
-        best = None
-        for a, b in hb_pairs:
-            for x, y in itertools.product(self._ours(a), self._ours(b)):
-                if not (m.geom_contype[x] & m.geom_conaffinity[y]
-                        or m.geom_contype[y] & m.geom_conaffinity[x]):  # fmt: skip
-                    continue
-                gap = mujoco.mj_geomDistance(m, d, x, y, GAP_MAX, None)
-                best = gap if best is None else min(best, gap)
-        return best
-
-
-def _mm(x) -> dict:
-    a = np.asarray([v for v in x if v is not None and np.isfinite(v)]) * 1000.0
-    if not len(a):
-        return {}
-    return {"p50": round(float(np.median(a)), 1), "p95": round(float(np.percentile(a, 95)), 1),
-            "max": round(float(a.max()), 1)}  # fmt: skip
 
 
 # -- comparison -------------------------------------------------------------------------------
-def _stats(delta: np.ndarray) -> dict:
-    a = np.abs(delta[np.isfinite(delta)])
-    if not len(a):
-        return {"median": None, "p95": None, "max": None}
-    return {"median": float(np.median(a)), "p95": float(np.percentile(a, 95)),
-            "max": float(a.max())}  # fmt: skip
 
 
 def check(name: str, args, workdir: Path) -> dict:
@@ -434,7 +165,7 @@ def check(name: str, args, workdir: Path) -> dict:
         hb_s = hb_side(f"_stage{stage}", transfer.pick(forced))
         if isinstance(hb_s, str):
             return {"task": name, "states": n, "error": f"stage {stage}: {hb_s}", "notes": notes}
-        stages[str(stage)] = {**_stats(ours - hb_s["reward"]), "ours_mean": float(ours.mean()),
+        stages[str(stage)] = {**diff_stats(ours - hb_s["reward"]), "ours_mean": float(ours.mean()),
                               "hb_mean": float(hb_s["reward"].mean())}  # fmt: skip
     if stages:
         notes.append(f"stages forced in turn: {', '.join(stages)}")
@@ -474,9 +205,9 @@ def check(name: str, args, workdir: Path) -> dict:
             # HumanoidBench's) how far apart our colliders are there (`OurGap`); in mm
             "ours_only_states": int((o & ~h).sum()),
             "hb_only_states": len(hb_only),
-            "ours_only_depth_mm": _mm(ours_deep[c][o & ~h]),
-            "hb_only_depth_mm": _mm(hb_deep[c][hb_only]),
-            "hb_only_our_gap_mm": _mm(gaps),
+            "ours_only_depth_mm": mm_stats(ours_deep[c][o & ~h]),
+            "hb_only_depth_mm": mm_stats(hb_deep[c][hb_only]),
+            "hb_only_our_gap_mm": mm_stats(gaps),
             "hb_only_no_pair": sum(g is None for g in gaps),
         }
 
@@ -490,7 +221,7 @@ def check(name: str, args, workdir: Path) -> dict:
     hb_reward = hb["reward"]
     delta = reward - hb_reward
     keys = [str(k) for k in hb["info_keys"]]
-    terms = {k: _stats(metrics[k] - hb["info"][:, keys.index(k)]) for k in metrics if k in keys}
+    terms = {k: diff_stats(metrics[k] - hb["info"][:, keys.index(k)]) for k in metrics if k in keys}
     for key, label in (("unmapped_ours", "our joints"), ("unmapped_hb", "HumanoidBench joints"),
                        ("unmapped_actuators", "actuators")):  # fmt: skip
         if len(hb[key]):
@@ -512,7 +243,7 @@ def check(name: str, args, workdir: Path) -> dict:
         "contacts_ours": "MuJoCo C mj_forward on our model (MJX contacts: contact_parity)",
         "contacts": contacts,
         "reward": {
-            **_stats(delta),
+            **diff_stats(delta),
             "ours_mean": float(reward.mean()),
             "hb_mean": float(hb_reward.mean()),
             "worst": [
@@ -531,7 +262,7 @@ def check(name: str, args, workdir: Path) -> dict:
             ),
             "reward": all(
                 r["median"] <= BAR_MEDIAN and r["p95"] <= BAR_P95
-                for r in (_stats(delta), *stages.values())
+                for r in (diff_stats(delta), *stages.values())
             ),
         },
         "notes": notes,
@@ -540,45 +271,6 @@ def check(name: str, args, workdir: Path) -> dict:
         "seconds": round(time.perf_counter() - t0, 1),
     }
     return result
-
-
-def _pct(v) -> str:
-    return "n/a" if v is None else f"{100 * v:.1f}%"
-
-
-def print_table(rows: list[dict]) -> None:
-    heads = ["robot-fixture/obstacle", "hand-object", "object-object", "robot-floor",
-             "robot-object", "object-fixture/obstacle", "object-floor"]  # fmt: skip
-    print("\n| task | states | " + " | ".join(heads)
-          + " | reward median abs d | p95 | termination | notes |")  # fmt: skip
-    print("|---|---:|" + "---:|" * (len(heads) + 3) + "---|")
-    for r in rows:
-        if "error" in r:
-            print(f"| {r['task']} | {r['states']} | error: {r['error']} |")
-            continue
-        c = r["contacts"]
-        cells = []
-        for cls in CLASSES:
-            for label in (cls.replace("static", "fixture"), cls.replace("static", "obstacle")):
-                if label in c:
-                    cells.append(_pct(c[label]["agreement"]))
-                    break
-        print(
-            f"| {r['task']} | {r['states']} | "
-            + " | ".join(cells)
-            + f" | {r['reward']['median']:.2g} | {r['reward']['p95']:.2g} | "
-            f"{_pct(r['terminated_agreement'])} | {'; '.join(r['notes'])} |"
-        )
-
-
-def merge(results: dict[str, dict], name: str, row: dict) -> bool:
-    """Puts `row` under `name` in `results`, unless the row is a failure ("error") and
-    `results` holds a measured row there: a failed rerun never replaces a measurement.
-    Returns whether it did."""
-    if "error" in row and name in results and "error" not in results[name]:
-        return False
-    results[name] = row
-    return True
 
 
 def main(argv=None) -> None:

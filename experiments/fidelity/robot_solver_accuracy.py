@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from sirl_jax.envs import h1
+from sirl_jax.envs import control_step, h1
 from sirl_jax.run.compile_cache import enable_compilation_cache
 
 N_STEPS = 50
@@ -63,7 +63,7 @@ def rollout_c(model: mujoco.MjModel, ctrls: np.ndarray) -> np.ndarray:
 def rollout_mjx(model: mujoco.MjModel, ctrls: np.ndarray) -> np.ndarray:
     """[T, nq] qpos after each control step in MJX (one jitted scan over the whole sequence)."""
     mx = mjx.put_model(model)
-    stepper = h1.make_control_step()
+    stepper = control_step.make_control_step()
 
     @jax.jit
     def run(d, ctrls):

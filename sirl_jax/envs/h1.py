@@ -21,8 +21,6 @@ contype=conaffinity=3.
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable
 from pathlib import Path
 
 import jax
@@ -31,7 +29,6 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from sirl_jax.envs import physics as _physics
 from sirl_jax.envs.physics import Simulator
 
 ASSET_DIR = Path(__file__).resolve().parents[2] / "assets" / "h1_shadow"
@@ -305,41 +302,6 @@ class Robot:
     def observation(self, d: mjx.Data) -> jax.Array:
         """[nq_robot + nv_robot] the robot's qpos then qvel (151 for h1hand, 51 for h1)."""
         return jnp.concatenate([d.qpos[self.qpos_slice], d.qvel[self.qvel_slice]])
-
-
-def make_control_step(
-    n_substeps: int = N_SUBSTEPS,
-) -> Callable[[mjx.Model, mjx.Data, jax.Array], mjx.Data]:
-    """Returns `step(mx, d, ctrl) -> d`: hold `ctrl` [nu] for `n_substeps` `mjx.step` calls
-    (a `lax.scan`), as HumanoidBench's `do_simulation`."""
-
-    def step(mx: mjx.Model, d: mjx.Data, ctrl: jax.Array) -> mjx.Data:
-        d = d.replace(ctrl=ctrl)
-        d, _ = jax.lax.scan(lambda d, _: (mjx.step(mx, d), None), d, None, length=n_substeps)
-        return d
-
-    return step
-
-
-def make_budget_control_step(
-    budget: int, n_substeps: int = N_SUBSTEPS
-) -> Callable[[mjx.Model, mjx.Data, jax.Array], tuple[mjx.Data, jax.Array]]:
-    """`make_control_step` for a model with an MJX contact budget (`max_contact_points`):
-    `step(mx, d, ctrl) -> (d, full)`, full [] float32 1 when the budget was full (every kept
-    contact active, `physics.budget_full`) after any of the substeps' collisions."""
-
-    def substep(mx: mjx.Model, carry, _):
-        d, full = carry
-        d = mjx.step(mx, d)
-        return (d, full | _physics.budget_full(d, budget)), None
-
-    def step(mx: mjx.Model, d: mjx.Data, ctrl: jax.Array) -> tuple[mjx.Data, jax.Array]:
-        carry = (d.replace(ctrl=ctrl), jnp.zeros((), bool))
-        (d, full), _ = jax.lax.scan(functools.partial(substep, mx), carry, None,
-                                    length=n_substeps)  # fmt: skip
-        return d, full.astype(jnp.float32)
-
-    return step
 
 
 def keyframe_data(

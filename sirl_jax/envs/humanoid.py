@@ -30,12 +30,11 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import mujoco
-import numpy as np
 from mujoco import mjx
 
 from sirl_jax.envs import h1
-from sirl_jax.envs import physics as _physics
 from sirl_jax.envs.base import Env, EnvState, init_state
+from sirl_jax.envs.control_step import make_budget_control_step, make_control_step
 from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, Simulator
 from sirl_jax.hb_compat import (
     EXACT,
@@ -50,26 +49,6 @@ from sirl_jax.hb_compat import (
 FRAME_SKIP = h1.N_SUBSTEPS
 """Physics substeps per control step (dt 0.002 s -> 50 Hz control), as in HumanoidBench."""
 RESET_NOISE = 0.01
-
-
-def budget_for(max_active: int) -> int:
-    """A task's MJX contact budget from the most active contacts measured on it (`pair_cap`,
-    random-action states, hands on the floor): the smallest multiple of 32, at least 64, that
-    is 20 or more above `max_active` (docs/tasks.md, "Contact budget")."""
-    return max(64, -(-(max_active + 20) // 32) * 32)
-
-
-LOCOMOTION_BUDGET = budget_for(43)
-"""The locomotion tasks' MJX contact budget (64). With all 62 hand colliders on the floor (the
-`hand_floor` default) walk has 181 contact slots and steps at 0.54 of the bare hands-off
-robot's rate; with the solver seeing the 64 most penetrating contacts, 0.79. Random-action
-states of 11 locomotion tasks hold at most 43 active contacts (balance_hard; the others 11-31;
-`pair_cap`, docs/tasks.md, "Hands on the floor"); a step that fills the budget is reported
-(`physics_overflow`)."""
-MANIPULATION_BUDGET = budget_for(44)
-"""The manipulation tasks' MJX contact budget (64) unless a task's measured maximum needs
-more (`budget_for`). With all 62 hand colliders on the floor their scenes allocate 236-627
-contact slots, and random-action states hold at most 15-104 active contacts (`pair_cap`)."""
 
 
 class Task(abc.ABC):
@@ -219,26 +198,6 @@ class Task(abc.ABC):
         return None
 
 
-def contact_arrays(data: mjx.Data) -> tuple[jax.Array, jax.Array]:
-    """(dist [C], geom [C, 2]) of one env's contacts, either impl (`physics.contact_arrays`)."""
-    return _physics.contact_arrays(data)
-
-
-def geom_mask(model: mujoco.MjModel, ids) -> np.ndarray:
-    """[ngeom] bool mask with True at `ids` (geom ids; -1, a name lookup that failed, raises)."""
-    ids = np.asarray(list(ids), int)
-    if (ids < 0).any() or (ids >= model.ngeom).any():
-        raise ValueError(f"geom ids must be in [0, {model.ngeom}), got {ids.tolist()}")
-    mask = np.zeros(model.ngeom, bool)
-    mask[ids] = True
-    return mask
-
-
-def fallen(qpos_z: jax.Array, threshold: float) -> jax.Array:
-    """HumanoidBench's height termination: root z (qpos[2]) < threshold."""
-    return qpos_z < threshold
-
-
 class HumanoidEnv(Env):
     """One HumanoidBench task on the H1 (`variant` "h1hand" or "h1strong": 61 actuators, or
     "h1": 19)."""
@@ -268,7 +227,7 @@ class HumanoidEnv(Env):
         self.robot = h1.Robot(self.mj_model)
         task.bind(self.mj_model, self.robot)
         self._set_physics(physics or Physics())
-        self._plain_step = h1.make_control_step(FRAME_SKIP)
+        self._plain_step = make_control_step(FRAME_SKIP)
         self._qpos0 = jnp.asarray(self.mj_model.key_qpos[0], jnp.float32)
         if task.full_state_obs:
             nq, nv = self.mj_model.nq, self.mj_model.nv
@@ -280,7 +239,7 @@ class HumanoidEnv(Env):
         self.sim = Simulator(self.mj_model, physics)
         self.mx = self.sim.mx
         budget = self.sim.contact_budget
-        self._budget_step = h1.make_budget_control_step(budget, FRAME_SKIP) if budget else None
+        self._budget_step = make_budget_control_step(budget, FRAME_SKIP) if budget else None
         reports = self.sim.impl == "warp" or budget > 0
         self._metric_names = tuple(self.task.metric_names) + ((OVERFLOW_METRIC,) if reports else ())
 

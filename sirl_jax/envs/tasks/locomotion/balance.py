@@ -11,8 +11,9 @@ import numpy as np
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, Task, contact_arrays, fallen, geom_mask
+from sirl_jax.envs.humanoid import Task
 from sirl_jax.envs.overlap import PairQuery, below_floor
+from sirl_jax.envs.task_parts import LOCOMOTION_BUDGET, contact_arrays, fallen, geom_mask
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.locomotion.obstacles import whole_robot_bits
 from sirl_jax.hb_compat import HB

@@ -21,8 +21,9 @@ from mujoco import mjx
 
 from sirl_jax.envs import h1
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, Task, contact_arrays, fallen, geom_mask
+from sirl_jax.envs.humanoid import Task
 from sirl_jax.envs.overlap import PairQuery
+from sirl_jax.envs.task_parts import LOCOMOTION_BUDGET, contact_arrays, fallen, geom_mask
 from sirl_jax.envs.tasks import scene
 
 WALL_DISCOUNT = 0.1

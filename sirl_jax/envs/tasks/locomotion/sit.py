@@ -8,7 +8,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, Task, fallen
+from sirl_jax.envs.humanoid import Task
+from sirl_jax.envs.task_parts import LOCOMOTION_BUDGET, fallen
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.locomotion.obstacles import whole_robot_bits
 from sirl_jax.hb_compat import HB

@@ -15,7 +15,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import LOCOMOTION_BUDGET, Task
+from sirl_jax.envs.humanoid import Task
+from sirl_jax.envs.task_parts import LOCOMOTION_BUDGET
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.locomotion.obstacles import OBSTACLE_GROUPS, obstacle_colliders
 

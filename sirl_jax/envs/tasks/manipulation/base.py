@@ -16,7 +16,8 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from sirl_jax.envs.humanoid import MANIPULATION_BUDGET, Task
+from sirl_jax.envs.humanoid import Task
+from sirl_jax.envs.task_parts import MANIPULATION_BUDGET
 from sirl_jax.envs.tasks import scene
 from sirl_jax.hb_compat import HB
 

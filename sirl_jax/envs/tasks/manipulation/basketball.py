@@ -9,8 +9,8 @@ import numpy as np
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import contact_arrays, fallen, geom_mask
 from sirl_jax.envs.overlap import PairQuery
+from sirl_jax.envs.task_parts import contact_arrays, fallen, geom_mask
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.manipulation.base import (
     ManipulationTask,

@@ -11,8 +11,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import budget_for
-from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.task_parts import budget_for
+from sirl_jax.envs.tasks import props, scene
 from sirl_jax.envs.tasks.manipulation.base import (
     ManipulationTask,
     body_id,
@@ -130,13 +130,13 @@ class BookshelfTask(ManipulationTask):
         book = _book(_BOOK, (0.0025, 0, 0.115), (0.082, 0.025, 0.115))
         builders = {
             **{f"book_{c}": book for c in "abcde"},
-            "trophy": scene.trophy,
+            "trophy": props.trophy,
             "book_flat": _book(_BOOK_FLAT, (0, -0.022, 0.115), (0.082, 0.028, 0.115)),
             "soda_can": _soda_can,
             "book_thick": _book(_BOOK_THICK, (0.0025, 0.003, 0.115), (0.082, 0.0415, 0.115)),
-            "chalk": lambda b: scene.rod(b, (0, 0, 0.01), 0.01, 0.07, quat=_CHALK_AXIS),
-            "snow_globe": scene.snow_globe,
-            "headphone": scene.headphone,
+            "chalk": lambda b: props.rod(b, (0, 0, 0.01), 0.01, 0.07, quat=_CHALK_AXIS),
+            "snow_globe": props.snow_globe,
+            "headphone": props.headphone,
         }  # fmt: skip
         for name in OBJECTS:
             body = spec.worldbody.add_body(name=name)

@@ -9,7 +9,7 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import fallen
+from sirl_jax.envs.task_parts import fallen
 from sirl_jax.envs.tasks import scene
 from sirl_jax.envs.tasks.manipulation.base import ManipulationTask, body_id
 

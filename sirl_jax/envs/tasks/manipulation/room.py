@@ -10,8 +10,8 @@ import mujoco
 from mujoco import mjx
 
 from sirl_jax.envs import rewards as R
-from sirl_jax.envs.humanoid import budget_for
-from sirl_jax.envs.tasks import scene
+from sirl_jax.envs.task_parts import budget_for
+from sirl_jax.envs.tasks import props, scene
 from sirl_jax.envs.tasks.manipulation.base import (
     ManipulationTask,
     body_id,
@@ -162,9 +162,9 @@ def _chair(body) -> None:
 
 _OBJECT_BUILDERS = {
     "chair": _chair,
-    "trophy": scene.trophy,
-    "headphone": lambda body: scene.headphone(body, y_offset=-0.05),
-    "package_a": scene.box((0.2, 0.1, 0.15)),
-    "package_b": scene.box((0.25, 0.2, 0.1)),
-    "snow_globe": scene.snow_globe,
+    "trophy": props.trophy,
+    "headphone": lambda body: props.headphone(body, y_offset=-0.05),
+    "package_a": props.box((0.2, 0.1, 0.15)),
+    "package_b": props.box((0.25, 0.2, 0.1)),
+    "snow_globe": props.snow_globe,
 }
