@@ -14,13 +14,6 @@ from sirl_jax.envs import load
 from sirl_jax.run import contract as C
 from sirl_jax.run import contract_sim as S
 
-BASE = [
-    "--preset", "smoke", "--steps", "650", "--seed-steps", "200", "--chunk-steps", "25",
-    "--num-envs", "2", "--eval-every", "650", "--log-every", "50", "--checkpoint-every", "0",
-    "--no-progress", "--no-tensorboard",
-]  # fmt: skip
-STEP = 650
-
 
 @pytest.mark.timeout(300)
 def test_h1hand_contract_obs_layout_reward_and_termination_match_the_env(tmp_path):

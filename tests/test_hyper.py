@@ -37,6 +37,13 @@ def _batch(kind: str) -> Batch:
                  episode_return=jax.random.uniform(k[3], (rows,), maxval=50.0))  # fmt: skip
 
 
+def _setup(kind: str):
+    """(config, batch, agent, its initial state, its jitted update) of `kind`'s tiny learner."""
+    cfg, batch = _cfg(kind), _batch(kind)
+    agent = make_agent(cfg, O, A, T)
+    return cfg, batch, agent, jax.jit(agent.init)(jax.random.PRNGKey(0)), jax.jit(agent.update)
+
+
 def _program(agent, state, batch):
     """The traced update of `agent` from `state`, and FastTD3's acting (it reads the noise
     bounds; TD-MPC2's planner reads no per-run scalar): jaxpr text and its constants."""
@@ -85,10 +92,7 @@ def test_a_sweepable_field_changes_the_state_and_not_the_program(kind):
 
 @pytest.mark.timeout(300)
 def test_fasttd3_values_do_what_their_fields_say():
-    cfg, batch = _cfg("fasttd3"), _batch("fasttd3")
-    agent = make_agent(cfg, O, A, T)
-    state = jax.jit(agent.init)(jax.random.PRNGKey(0))
-    update = jax.jit(agent.update)
+    cfg, batch, agent, state, update = _setup("fasttd3")
 
     def with_values(**values):
         f = dataclasses.replace(cfg.fasttd3, **values)
@@ -123,10 +127,7 @@ def test_fasttd3_values_do_what_their_fields_say():
 
 @pytest.mark.timeout(300)
 def test_tdmpc2_rate_zero_freezes_the_networks_and_tau_one_copies_the_qs():
-    cfg, batch = _cfg("tdmpc2"), _batch("tdmpc2")
-    agent = make_agent(cfg, O, A, T)
-    state = jax.jit(agent.init)(jax.random.PRNGKey(0))
-    update = jax.jit(agent.update)
+    cfg, batch, agent, state, update = _setup("tdmpc2")
     frozen = with_hyper(state, dataclasses.replace(cfg, lr=LR, tau=1.0))
     new, _ = update(frozen, batch, R_MAX, jax.random.PRNGKey(2))
     # Adam's first step moves each parameter by at most about lr (g / (|g| + eps) <= 1)

@@ -130,11 +130,7 @@ def to_html(r: Report) -> str:
               f'<img alt="curves" src="{data_uri("image/png", r.plot_png)}">')  # fmt: skip
     notes = "".join(f"<div class=note>{_e(n)}</div>" for n in r.notes)
     title = f"{r.task} seed {r.seed}: {r.run_dir.name}"
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>
-<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_CSS}</style></head>
-<body><main>
-<h1>{_e(r.task)} · seed {r.seed}</h1>
+    return page(title, f"""<h1>{_e(r.task)} · seed {r.seed}</h1>
 <p class=sub>{_e(r.task_line)} · run {_e(r.run_dir.name)} · sirl_jax run report</p>
 {_summary(r)}
 <h2>Cost</h2><p>{_e(r.cost)}</p>
@@ -143,8 +139,17 @@ def to_html(r: Report) -> str:
 <h2>Counters</h2>{_counters(r)}
 <h2>Latest video</h2>{_video(r)}
 <h2>Config</h2>{_config(r)}
-</main></body></html>
+""")
+
+
+def page(title: str, body: str) -> str:
+    """A whole page: `body` in the report's inline styles, no external reference."""
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>
+<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_CSS}</style></head>
+<body><main>
+{body}</main></body></html>
 """
 
 
-__all__ = ["to_html"]
+__all__ = ["page", "to_html"]

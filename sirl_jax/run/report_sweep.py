@@ -23,7 +23,7 @@ from sirl_jax.run import runlog
 from sirl_jax.run.errors import UsageError
 from sirl_jax.run.progress import format_duration
 from sirl_jax.run.report import Report, _curves, gather, task_line, wall_seconds
-from sirl_jax.run.report_html import _CSS, _card, _e, _num
+from sirl_jax.run.report_html import _card, _e, _num, page
 
 
 @dataclass
@@ -151,11 +151,7 @@ def sweep_html(r: SweepReport) -> str:
               f'<img alt="curves" src="{data_uri("image/png", r.plot_png)}">')  # fmt: skip
     notes = "".join(f"<div class=note>{_e(n)}</div>" for n in r.notes)
     title = f"{r.task}: sweep {r.run_dir.name}"
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>
-<meta name="viewport" content="width=device-width, initial-scale=1"><style>{_CSS}</style></head>
-<body><main>
-<h1>{_e(r.task)} · sweep of {runs} runs</h1>
+    return page(title, f"""<h1>{_e(r.task)} · sweep of {runs} runs</h1>
 <p class=sub>{_e(r.task_line)} · {_e(axes or "seeds only")} · sirl_jax sweep report</p>
 <div class="cards">{"".join(cards)}</div>
 <h2>Arms (mean ± std over seeds)</h2>
@@ -165,8 +161,7 @@ the best evaluation{_e(bar)}.</p>{_arm_table(r)}
 {_e(r.run_dir)}/&lt;run&gt;</code>.</p>{_run_table(r)}
 <h2>Cost</h2><p>{_e(r.cost)}</p>
 <h2>Curves</h2>{curves}{notes}
-</main></body></html>
-"""
+""")
 
 
 def write_sweep_report(run_dir: Path, out: Path | None = None) -> Path:
