@@ -191,4 +191,15 @@ register_preset(
     "1024 envs",
 )
 
-__all__ = ["PRESETS", "Preset", "get_preset", "register_preset"]
+CPU_LEARNS: dict[str, tuple[str, str, str]] = {
+    "h1hand-sit_simple-v0": (
+        "fasttd3-cpu",
+        "--train.hand-floor none --train.contact-set reduced --train.contact-budget 0",
+        "past HumanoidBench's bar of 750 at 40k env steps, 0.17 h of a 2-core CPU "
+        "(docs/results/sit_simple_solved.md, on that env)",
+    ),
+}
+"""Task id -> (preset, the env flags it was measured with, what it reached): the presets
+measured to learn a task on a CPU. A CPU run's cost line names the one for its task."""
+
+__all__ = ["CPU_LEARNS", "PRESETS", "Preset", "get_preset", "register_preset"]

@@ -111,7 +111,26 @@ def test_cpu_run_of_a_gpu_sized_model_states_its_cost_first(tmp_path, capsys, mo
     out = capsys.readouterr().out
     line = next(li for li in out.splitlines() if "of agent compute" in li)
     assert "for the 4,000 steps left (one plan call for 2 env(s)" in line, line
-    assert "one update" in line and "use --preset smoke or a GPU" in line, line
+    assert "one update" in line and "use a GPU, or a smaller model (--preset smoke)" in line
+
+
+def test_the_cpu_hint_names_the_preset_that_learns_the_task():
+    import dataclasses
+
+    from sirl_jax.presets import get_preset
+
+    reference = dataclasses.replace(get_preset("default"), train=dataclasses.replace(
+        get_preset("default").train, task="sit_simple"))  # fmt: skip
+    hint = cost_probe.cpu_hint(reference)
+    assert ("on a CPU use the fasttd3-cpu preset, measured past HumanoidBench's bar of 750"
+            in hint)  # fmt: skip
+    assert hint.endswith("python -m sirl_jax train --task h1hand-sit_simple-v0 --preset "
+                         "fasttd3-cpu --train.hand-floor none --train.contact-set reduced "
+                         "--train.contact-budget 0")  # fmt: skip
+    assert cost_probe.cpu_hint(get_preset("fasttd3-cpu")).startswith(
+        "; fasttd3-cpu learns this task on a CPU: past")  # fmt: skip
+    walk = dataclasses.replace(reference, train=dataclasses.replace(reference.train, task="walk"))
+    assert "no preset is measured to learn this task on a CPU" in cost_probe.cpu_hint(walk)
 
 
 # ---------------------------------------------------------------- failures (toy train)

@@ -13,6 +13,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
+from sirl_jax.presets import CPU_LEARNS, get_preset
 from sirl_jax.run.progress import format_duration
 from sirl_jax.train import Train
 
@@ -87,3 +88,24 @@ def cost_line(train: Train, state: Any, repeats: int = 3) -> str:
         f"left (one {what} call for {t.num_envs} env(s) {t_act:.3g} s, one update "
         f"{t_update:.3g} s, one env step {t_env:.3g} s, measured now)"
     )
+
+
+def cpu_hint(config) -> str:
+    """What a CPU run's cost line adds: the preset measured to learn its task on a CPU, with
+    the command (`presets.CPU_LEARNS`), unless the run already uses that preset's learner;
+    for a task no preset is known to learn on a CPU, a GPU."""
+    task = config.train.task
+    from sirl_jax.envs import spec
+
+    try:
+        task = spec(task).id
+    except (KeyError, ValueError):
+        pass
+    if task not in CPU_LEARNS:
+        return ("; no preset is measured to learn this task on a CPU (presets.CPU_LEARNS): "
+                "use a GPU, or a smaller model (--preset smoke)")  # fmt: skip
+    preset, flags, reached = CPU_LEARNS[task]
+    if config.agent == get_preset(preset).agent:
+        return f"; {preset} learns this task on a CPU: {reached}"
+    return (f"; on a CPU use the {preset} preset, measured {reached}: python -m sirl_jax train "
+            f"--task {task} --preset {preset} {flags}")

@@ -23,7 +23,7 @@ from sirl_jax.envs import spec as registered_spec
 from sirl_jax.run import progress as prog
 from sirl_jax.run import runlog
 from sirl_jax.run.checkpoint import Checkpointer, CheckpointWriteError
-from sirl_jax.run.cost_probe import cost_line
+from sirl_jax.run.cost_probe import cost_line, cpu_hint
 from sirl_jax.run.errors import TrainingFailure, UsageError
 from sirl_jax.run.host_memory import trim_host_heap
 from sirl_jax.run.states import commit, copy_state, restore_state, save_state
@@ -312,7 +312,7 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
             if saved is not None:
                 log.drop_after(saved)
             if probe_cost:
-                hint = "; use --preset smoke or a GPU" if on_cpu else ""
+                hint = cpu_hint(config) if on_cpu else ""
                 print(cost_line(train, state) + hint, flush=True)
             bar = prog.Progress(config.train.steps, int(jax.device_get(state.env_steps)),
                                 enabled=show_progress)  # fmt: skip
