@@ -31,6 +31,7 @@ def _crowd() -> mujoco.MjModel:
     return spec.compile()
 
 
+@pytest.mark.slow  # 36 s idle: MJX's cull against pair_cap's ranking, every task's pairs
 @pytest.mark.timeout(300)
 def test_ranks_pick_the_pairs_mjx_collides():
     m = _crowd()

@@ -135,7 +135,8 @@ def _push(obs, t, env):
 @pytest.mark.timeout(400)
 @pytest.mark.parametrize(
     "name, policy, kwargs",
-    [("pendulum", _swing, {"episode_length": 20}), ("dmc:CartpoleSwingup", _push, {})],
+    [("pendulum", _swing, {"episode_length": 20}),
+     pytest.param("dmc:CartpoleSwingup", _push, {}, marks=pytest.mark.slow)],  # 22 s idle
 )
 def test_warp_vec_env_matches_jax_through_auto_resets(name, policy, kwargs):
     qpos = {}
@@ -157,7 +158,7 @@ def _stand(obs, t, env):
 
 
 @needs_warp
-@pytest.mark.slow  # 128 s on a fresh clone; the pendulum, Cartpole and contact tests stay fast
+@pytest.mark.slow  # 128 s on a fresh clone; the pendulum and contact tests stay fast
 @pytest.mark.timeout(600)
 def test_warp_h1hand_walk_matches_jax_after_50_control_steps():
     out = {}
