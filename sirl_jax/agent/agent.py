@@ -12,7 +12,7 @@ from flax import struct
 
 from sirl_jax.agent import losses
 from sirl_jax.agent.config import AgentConfig
-from sirl_jax.agent.hyper import Hyper, init_hyper
+from sirl_jax.agent.hyper import Hyper
 from sirl_jax.agent.math import discount_from_episode_length
 from sirl_jax.agent.networks import init_params
 from sirl_jax.agent.planner import PlannerModel, PlannerState, make_planner
@@ -70,7 +70,7 @@ class Agent:
 def _wm_optimizer(cfg: AgentConfig, h: Hyper | None = None) -> optax.GradientTransformation:
     """One global-norm clip over all world-model params, then Adam; encoder lr x enc_lr_scale.
     h: the run's traced rates (`state.hyper`); None: `cfg`'s (the optimiser state is the same)."""
-    h = Hyper(init_hyper(cfg)) if h is None else h
+    h = Hyper.of(cfg, h)
 
     def labels(params):
         return {
@@ -169,7 +169,7 @@ def make_tdmpc2(
 
     def init(key: jax.Array) -> AgentState:
         params = init_params(cfg, obs_size, action_size, key)
-        wm_params, h = {k: params[k] for k in keys}, Hyper(init_hyper(cfg))
+        wm_params, h = {k: params[k] for k in keys}, Hyper.of(cfg)
         return AgentState(
             params=params,
             target_qs=jax.tree_util.tree_map(jnp.copy, params["qs"]),

@@ -34,7 +34,7 @@ from sirl_jax.agent import losses
 from sirl_jax.agent.agent import Agent, check_sizes, make_sirl_reference, polyak
 from sirl_jax.agent.config import AgentConfig
 from sirl_jax.agent.fasttd3_nets import ObsNorm, ReluMLP, project, widths
-from sirl_jax.agent.hyper import Hyper, init_hyper
+from sirl_jax.agent.hyper import Hyper
 from sirl_jax.types import Batch
 
 sg = jax.lax.stop_gradient
@@ -126,7 +126,7 @@ def make_fasttd3(
         return jnp.sum(jax.nn.softmax(logits, axis=-1) * support, axis=-1)
 
     def init(key: jax.Array) -> FastTD3State:
-        h0 = Hyper(init_hyper(cfg))
+        h0 = Hyper.of(cfg)
         k_actor, k_critic = jax.random.split(key)
         obs, act = jnp.zeros((1, obs_size)), jnp.zeros((1, obs_size + A))
         params = {

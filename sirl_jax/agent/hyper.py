@@ -16,6 +16,7 @@ built inside the update from the traced values (`optax.adam(lr)` with lr a [] ar
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -43,7 +44,7 @@ SWEEPABLE: dict[str, tuple[tuple[str, ...], str]] = {
 """AgentConfig field path -> (the learners that read it, what it is): the fields a sweep may
 vary. A field of the other learner is static for this one (it is not read at all)."""
 
-DERIVED: dict[str, tuple[tuple[str, ...], object]] = {
+DERIVED: dict[str, tuple[tuple[str, ...], Callable]] = {
     # the encoder's rate as TD-MPC2 computes it, once in float64 (a traced product of the two
     # float32 values can round differently)
     "enc_lr": (("tdmpc2",), lambda cfg: cfg.lr * cfg.enc_lr_scale),
@@ -83,6 +84,11 @@ class Hyper:
 
     def __getitem__(self, field: str) -> jax.Array:
         return self.hyper[key(field)]
+
+    @classmethod
+    def of(cls, cfg, h: Hyper | None = None) -> Hyper:
+        """`h`, or when None the values of `cfg` (a caller outside a learner's update)."""
+        return cls(init_hyper(cfg)) if h is None else h
 
 
 def with_hyper(state, cfg):

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 
 from sirl_jax.agent import math as am
 from sirl_jax.agent.config import AgentConfig, SirlConfig
-from sirl_jax.agent.hyper import Hyper, init_hyper
+from sirl_jax.agent.hyper import Hyper
 from sirl_jax.agent.world_model import (
     LOG_2PI,
     PolicyOutput,
@@ -111,7 +111,7 @@ def world_model_loss(
     l_c = jnp.sum(w * consistency) / H
     l_r = jnp.sum(w * reward_ce.mean(axis=1)) / H
     l_q = jnp.sum(w * value_ce.mean(axis=2).sum(axis=0)) / (H * value_ce.shape[0])
-    h = Hyper(init_hyper(cfg)) if h is None else h
+    h = Hyper.of(cfg, h)
     loss = h["consistency_coef"] * l_c + h["reward_coef"] * l_r + h["value_coef"] * l_q
     if cfg.episodic:
         d_logits = wm.termination_logit(params, z_roll)  # [H, B] on z_1..z_H
@@ -179,7 +179,7 @@ def policy_loss(
       loss []; aux = (updated running scale [], metrics).
     """
     k_sample, k_pair, k_drop = jax.random.split(key, 3)
-    h = Hyper(init_hyper(cfg)) if h is None else h
+    h = Hyper.of(cfg, h)
     Hp1 = zs.shape[0]
     A = batch.action.shape[-1]
     w = rho_weights(cfg.rho, Hp1)

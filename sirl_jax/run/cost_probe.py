@@ -13,6 +13,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
+from sirl_jax.envs import spec
 from sirl_jax.presets import CPU_LEARNS, get_preset
 from sirl_jax.run.progress import format_duration
 from sirl_jax.train import Train
@@ -95,8 +96,6 @@ def cpu_hint(config) -> str:
     the command (`presets.CPU_LEARNS`), unless the run already uses that preset's learner;
     for a task no preset is known to learn on a CPU, a GPU."""
     task = config.train.task
-    from sirl_jax.envs import spec
-
     try:
         task = spec(task).id
     except (KeyError, ValueError):
