@@ -6,7 +6,7 @@
   smoke          a CPU-sized run on the pendulum swing-up: `AgentConfig.tiny` (batch 32), 4 envs,
                  a few thousand steps.
   cpu            a CPU-sized learning run on the pendulum swing-up: `AgentConfig.small`, 8 envs,
-                 UTD 0.25 (experiments/studies/learning_check.py).
+                 UTD 0.25 (docs/training.md).
   gpu            the reference agent on h1hand-walk for one GPU, one seed of the paper's setting
                  (1 env, UTD 1); S seeds are vmapped by the caller (docs/training.md).
   gpu-fast       gpu with 16 envs per seed and UTD 1/16 (one update per vectorised step), as
@@ -117,7 +117,7 @@ def _cpu() -> Config:
 
 def _gpu() -> Config:
     # One seed of the paper's setting. Config has no seed axis: S seeds run as one program
-    # through jax.vmap over Train.init/step keys (experiments/paper/common.py run_arm).
+    # through jax.vmap over Train.init/step keys (sirl_jax/sweep.py).
     return Config(
         agent=AgentConfig(),
         train=TrainConfig(task="h1hand-walk-v0", impl="jax", chunk_steps=500, eval_episodes=10),

@@ -56,10 +56,24 @@ def _static_reason(field: str) -> str | None:
 @dataclasses.dataclass(frozen=True)
 class Sweep:
     """seeds: runs per point of the grid (train.seed 0..seeds-1 offset by the config's seed);
-    axes: ((AgentConfig field, values), ...), each field in `SWEEPABLE`."""
+    axes: ((AgentConfig field, values), ...), each field in `SWEEPABLE`.
+
+    first_seed: the index of the first seed (a sweep of 1 seed from index 2 trains the third
+    seed alone, e.g. one seed per process). split: 0, each run's key is PRNGKey(train.seed)
+    of its own config, as a run trained alone; N > 0, seed index i's key is
+    split(PRNGKey(base train.seed), N)[i], the scheme the study drivers used before sweeps,
+    kept so that their committed runs reproduce (`experiments.study`; not on the CLI)."""
 
     seeds: int = 1
     axes: tuple[tuple[str, tuple[float, ...]], ...] = ()
+    first_seed: int = 0
+    split: int = 0
+
+    def __post_init__(self):
+        if self.first_seed < 0 or (self.split and self.first_seed + self.seeds > self.split):
+            raise SweepError(f"seeds {self.first_seed}..{self.first_seed + self.seeds - 1} "
+                             f"are invalid with split={self.split}; allowed: indices in "
+                             f"0..{max(self.split, 1) - 1} when split > 0, >= 0 otherwise")
 
     @classmethod
     def parse(cls, seeds: int, specs: Sequence[str]) -> Sweep:
@@ -100,7 +114,8 @@ class Sweep:
 
     def runs(self) -> list[tuple[dict[str, float], int]]:
         """(point, seed index) of every run, seeds innermost: the order of the R axis."""
-        return [(p, s) for p in self.points() for s in range(self.seeds)]
+        return [(p, s) for p in self.points()
+                for s in range(self.first_seed, self.first_seed + self.seeds)]  # fmt: skip
 
     def names(self) -> list[str]:
         """Each run's name, e.g. "beta=0_seed=1" (its folder under a sweep's run dir)."""
@@ -129,11 +144,18 @@ class Sweep:
             out.append(dataclasses.replace(config, agent=agent, train=train))
         return out
 
+    def keys(self, config: Config) -> jax.Array:
+        """[R] each run's key (see `split`)."""
+        if not self.split:
+            return jnp.stack([jax.random.PRNGKey(c.train.seed) for c in self.configs(config)])
+        split = jax.random.split(jax.random.PRNGKey(config.train.seed), self.split)
+        return split[jnp.asarray([s for _, s in self.runs()])]
+
     def init(self, train, config: Config):
         """() -> the [R, ...] state of every run: `train.init` on each run's key, with each
         run's values written into `state.agent.hyper`. `train` is built from `config`."""
         configs = self.configs(config)
-        keys = jnp.stack([jax.random.PRNGKey(c.train.seed) for c in configs])
+        keys = self.keys(config)
         hyper = jax.tree.map(lambda *xs: jnp.stack(xs), *[init_hyper(c.agent) for c in configs])
 
         def init():

@@ -38,7 +38,9 @@ def _listing(root: Path) -> dict[str, bytes]:
 
 
 def _rows(path: Path) -> list[dict]:
-    return [{k: v for k, v in r.items() if k != "wall_time"} for r in runlog.read_jsonl(path)]
+    """The rows of a JSONL log without their clocks (wall_time; a sweep's time/*)."""
+    return [{k: v for k, v in r.items() if k != "wall_time" and not k.startswith("time/")}
+            for r in runlog.read_jsonl(path)]  # fmt: skip
 
 
 def _same(a, b) -> bool:

@@ -93,7 +93,7 @@ def test_parallel_learner_summary_times_each_seed_to_10x_random(tmp_path):
     log.write_text("Using FastTD3\n 10%|#  | 300/6260\rEVAL env_steps=9600 return=12.5 "
                    "length=40.0 wall_s=100\nEvaluating at global step 600\n"
                    "EVAL env_steps=19200 return=30.25 length=61.5 wall_s=207\n")  # fmt: skip
-    pl.main(pl.Args(report=True, results=str(tmp_path / "pl"), tdmpc2=str(tmp_path / "td"),
+    pl.main(pl.Args(results=str(tmp_path / "pl"), tdmpc2=str(tmp_path / "td"),
                      random=str(tmp_path / "random.json"), out=str(out), zero_action=None,
                      official_log=str(log)))  # fmt: skip
     assert json.loads((out / "summary.json").read_text()) == s
@@ -106,12 +106,12 @@ def test_parallel_learner_summary_times_each_seed_to_10x_random(tmp_path):
 def test_parallel_learner_config_is_the_fasttd3_cpu_preset_at_beta():
     import dataclasses
 
-    from experiments.studies.parallel_learner import config
+    from experiments.study import arm_config, study_of
     from sirl_jax.presets import get_preset
 
     preset = get_preset("fasttd3-cpu")
     for beta in (0.0, 1.0):
-        cfg = config(beta, 200_000)
+        cfg = arm_config(study_of("parallel_learner"), f"beta{beta:g}")
         assert cfg.agent.kind == "fasttd3" and cfg.agent.sirl.beta == beta
         # it ran before replay sampling was an option, FastTD3 drawing episode-uniformly
         assert cfg.agent.fasttd3.replay_sampling == "episode"

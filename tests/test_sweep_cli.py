@@ -41,7 +41,8 @@ def test_every_run_has_its_own_run_directory(sweeps):
     a = sweeps["a"]
     assert sweeps["codes"] == (0, 0)
     sweep = json.loads((a / "sweep.json").read_text())
-    assert sweep == {"seeds": 2, "axes": {"sirl.beta": [0.0, 1.0]}, "runs": NAMES}
+    assert sweep == {"seeds": 2, "axes": {"sirl.beta": [0.0, 1.0]}, "runs": NAMES,
+                     "first_seed": 0, "split": 0}  # fmt: skip
     for name, (beta, seed) in zip(NAMES, [(0, 0), (0, 1), (1, 0), (1, 1)], strict=True):
         config = runlog.load_config(a / name)
         assert (config.agent.sirl.beta, config.train.seed) == (beta, seed)

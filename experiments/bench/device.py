@@ -62,10 +62,10 @@ from experiments.bench.device_parts import (
     run_bytes,
     train_seconds,
 )
-from experiments.paper.common import PAPER_HOURS
 from sirl_jax.envs import load
 from sirl_jax.envs.physics import warp_unavailable
 from sirl_jax.run.compile_cache import enable_compilation_cache
+from sirl_jax.run.reference import paper_hours
 
 ROW_GROUPS = ("matmul", "paper", "agent", "env", "fasttd3", "throughput", "sweep", "warp")
 
@@ -226,7 +226,7 @@ class Bench:
                         worlds = SEEDS * e
                         seconds += self.env_step(task_id, worlds) - self.env_step(walk, worlds)
                     hours = RUN_STEPS / (e / seconds) / 3600
-                    paper = PAPER_HOURS[task][0 if sirl else 1]
+                    paper = paper_hours()[task]["TDMPBC" if sirl else "TD-MPC2"]
                     note = f"{s.caveat}paper (V100) {paper} h: {paper / hours:.3g}x faster"
                     if name != "paper":
                         note += f"; E={e} per seed, not the paper's setting"

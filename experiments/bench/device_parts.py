@@ -20,16 +20,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from experiments.bench.bench_agent import plan_flops, synthetic_batch, update_flops
-from experiments.paper.common import PAPER_HOURS
 from sirl_jax.agent import AgentConfig, SirlConfig, make_agent
 from sirl_jax.config import Config, TrainConfig
 from sirl_jax.envs import VecEnv, load
 from sirl_jax.envs.physics import OVERFLOW_METRIC, Physics, raise_on_overflow
 from sirl_jax.presets import get_preset
+from sirl_jax.run.reference import paper_hours
 from sirl_jax.train import make_train
 
 RUN_STEPS, SEEDS = 2_000_000, 3
-PAPER_RUN_HOURS = PAPER_HOURS["walk"][0] / 3  # 37.7 V100-hours for 3 seeds of TDMPBC on walk
+PAPER_RUN_HOURS = paper_hours()["walk"]["TDMPBC"] / 3  # 37.7 V100-h for 3 seeds, TDMPBC, walk
 QUICK_XLA_FLAGS = "--xla_backend_optimization_level=0 --xla_llvm_disable_expensive_passes=true"
 
 

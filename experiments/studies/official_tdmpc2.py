@@ -1,6 +1,6 @@
 """The official TD-MPC2 on HumanoidBench's own env, at the sit_simple study's config: one seed.
 
-The reference learner of the sit_simple study (`experiments.studies.sit_simple`): HumanoidBench's
+The reference learner of the sit_simple study (`experiments.study sit_simple`): HumanoidBench's
 PyTorch fork of TD-MPC2 (its `tdmpc2/` folder), trained on HumanoidBench's MuJoCo C env
 h1hand-sit_simple-v0, so that its eval curve can be laid beside ours. Nothing of it is copied
 here: the fork runs from a checkout outside this repository, in a venv of its own, and this

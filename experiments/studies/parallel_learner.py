@@ -1,24 +1,21 @@
-"""FastTD3 + SIRL on h1hand-sit_simple-v0 against wall-clock, beside the TD-MPC2 study.
+"""The parallel-learner study's report: FastTD3 (beta 0) and FastTD3 + SIRL (beta 1) on
+h1hand-sit_simple-v0 against wall-clock, beside the TD-MPC2 study.
 
-    .venv/bin/python -m experiments.studies.parallel_learner --arm beta0    # 3 seeds, beta 0
-    .venv/bin/python -m experiments.studies.parallel_learner --arm beta1    # 3 seeds, beta 1
-    .venv/bin/python -m experiments.studies.parallel_learner --report \
+    .venv/bin/python -m experiments.study parallel_learner --arm beta0 &   # 3 seeds, beta 0
+    .venv/bin/python -m experiments.study parallel_learner --arm beta1 &   # 3 seeds, beta 1
+    .venv/bin/python -m experiments.studies.parallel_learner \
         --results results/parallel_learner --out docs/results/parallel_learner
 
-An arm trains 3 seeds of the `fasttd3-cpu` preset (32 envs per seed, batch 1024, critic 512,
-actor 256; `sirl_jax/presets.py`) vmapped in one program, at beta 0 (FastTD3) or beta 1
-(FastTD3 + the TDMPBC term), evaluating the actor (eval mode, 4 episodes) every 10k env steps
-per seed. It resumes where it stopped (`experiments.paper.common.run_arm`), writing
-train.csv / eval.csv (with wall_s and process cpu_s) incrementally under `--results`.
+The arms are `experiments.studies.specs.STUDIES["parallel_learner"]`: the `fasttd3-cpu` preset
+(32 envs per seed, batch 1024, critic 512, actor 256) at beta 0 or 1, the actor evaluated
+(eval mode, 4 episodes) every 10k env steps per seed. Run them side by side, as the TD-MPC2
+study's two arms ran, so that each has the same share of the machine.
 
-`--report` writes `<out>/summary.json` and `<out>/figure.png`: eval return against wall-clock
-hours, process CPU hours and env steps for both arms and for the TD-MPC2 study's seeds (and,
-against env steps, the official FastTD3 at the arms' config: `--official-log`)
-(`experiments.studies.sit_simple`, planner eval), with the first time after step 0 that each
-seed reaches 10x the random policy's mean return (the untrained networks' step-0 evaluation
-does not count: see `hours_to`) (`--random`, the sit_simple study's random.json). Run the
-arms side by side, as the TD-MPC2 study's two arms ran, so that each has the same share of
-the machine.
+This writes `<out>/summary.json` and `<out>/figure.png`: eval return against wall-clock
+hours, process CPU hours and env steps for both arms and for the TD-MPC2 study's seeds
+(planner eval), and, against env steps, the official FastTD3 at the arms' config
+(`--official-log`), with the first time after step 0 that each seed reaches 10x the random
+policy's mean return (`curves.hours_to`; `--random`, the sit_simple study's random.json).
 """
 
 from __future__ import annotations
@@ -30,56 +27,12 @@ from pathlib import Path
 import numpy as np
 import tyro
 
-from experiments.paper.common import run_arm
+from experiments.studies.curves import eval_curves, hours_to
 from experiments.studies.official_fasttd3 import official_rows
-from experiments.studies.sit_simple import STUDY_ENV  # the env its committed runs used
-from sirl_jax.config import Config
-from sirl_jax.presets import get_preset
+from experiments.studies.specs import SIT as TASK
 from sirl_jax.run.runlog import CsvLog
 
-TASK = "h1hand-sit_simple-v0"
-ARMS = {"beta0": 0.0, "beta1": 1.0}
-
-
-def config(beta: float, steps: int, num_envs: int = 32) -> Config:
-    """The `fasttd3-cpu` preset at `beta`, `steps` env steps per seed, 4 eval episodes every
-    10k, replay holding the whole run, drawn episode-uniformly: the study ran before
-    `fasttd3.replay_sampling` existed, when FastTD3 shared TD-MPC2's sampling."""
-    cfg = get_preset("fasttd3-cpu")
-    fasttd3 = dataclasses.replace(cfg.agent.fasttd3, replay_sampling="episode")
-    cfg = dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, fasttd3=fasttd3))
-    sirl = dataclasses.replace(cfg.agent.sirl, beta=beta)
-    train = dataclasses.replace(cfg.train, task=TASK, steps=steps, num_envs=num_envs,
-                                buffer_size=steps, eval_every=10_000, eval_episodes=4,
-                                **STUDY_ENV)
-    return dataclasses.replace(cfg, agent=dataclasses.replace(cfg.agent, sirl=sirl),
-                               train=train)  # fmt: skip
-
-
-def eval_curves(arm_dir: Path, column: str) -> dict[int, dict[str, np.ndarray]]:
-    """{seed: {"steps", "return", "wall_h", "cpu_h"}} of one arm's eval.csv, or of its
-    seed*/eval.csv where each seed ran as its own process."""
-    seeds: dict[int, dict[str, list]] = {}
-    files = [arm_dir / "eval.csv"] if (arm_dir / "eval.csv").exists() else sorted(
-        arm_dir.glob("seed*/eval.csv"))  # fmt: skip
-    for r in (row for f in files for row in CsvLog(f).rows()):
-        d = seeds.setdefault(int(r["seed"]), {"steps": [], "return": [], "wall_h": [],
-                                              "cpu_h": []})  # fmt: skip
-        d["steps"].append(int(r["env_steps"]))
-        d["return"].append(float(r[column]) if r[column] != "" else np.nan)
-        d["wall_h"].append(float(r["wall_s"]) / 3600)
-        d["cpu_h"].append(float(r["cpu_s"]) / 3600)
-    return {s: {k: np.asarray(v) for k, v in d.items()} for s, d in sorted(seeds.items())}
-
-
-def hours_to(curve: dict[str, np.ndarray], bar: float, clock: str = "wall_h") -> float | None:
-    """The hours of the first evaluation after training began (env steps > 0) whose return
-    reaches `bar`; None if none does. The step-0 evaluation, of the untrained networks, never
-    counts: on sit_simple an action near 0 already earns about 647 (the zero action's return),
-    so FastTD3's untrained actor (a small output layer) and some TD-MPC2 seeds start above
-    10x random (101.5) before learning anything."""
-    hit = np.flatnonzero((curve["return"] >= bar) & (curve["steps"] > 0))
-    return round(float(curve[clock][hit[0]]), 3) if hit.size else None
+ARMS = ("beta0", "beta1")
 
 
 def summarize(results: Path, tdmpc2: Path, random_json: Path) -> dict:
@@ -142,13 +95,6 @@ def figure(results: Path, tdmpc2: Path, bar: float, out: Path,
 
 @dataclasses.dataclass(frozen=True)
 class Args:
-    arm: str | None = None
-    """beta0 or beta1: run (or resume) that arm."""
-    report: bool = False
-    """Write summary.json and figure.png from the arms' CSVs (partial ones too)."""
-    seeds: int = 3
-    steps: int = 200_000
-    num_envs: int = 32
     results: str = "results/parallel_learner"
     tdmpc2: str = "docs/results/sit_simple_study/study/tdmpc2"
     """The TD-MPC2 study arm drawn beside the FastTD3 arms."""
@@ -163,30 +109,23 @@ class Args:
 
 
 def main(args: Args) -> None:
-    root = Path(args.results)
-    if args.arm:
-        if args.arm not in ARMS:
-            raise SystemExit(f"error: --arm {args.arm!r} is unknown; allowed: {', '.join(ARMS)}")
-        run_arm(config(ARMS[args.arm], args.steps, args.num_envs), args.seeds, root / args.arm,
-                f"fasttd3 {args.arm}")  # fmt: skip
-    if args.report:
-        out, tdmpc2 = Path(args.out), Path(args.tdmpc2)
-        summary = summarize(root, tdmpc2, Path(args.random))
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-        official = out / "official_fasttd3" / "eval.csv"
-        if args.official_log:
-            official.parent.mkdir(parents=True, exist_ok=True)
-            official.unlink(missing_ok=True)
-            CsvLog(official).extend(official_rows(Path(args.official_log)))
-        zero = json.loads(Path(args.zero_action).read_text())["mean"] if args.zero_action else None
-        figure(root, tdmpc2, 10 * summary["random_return"], out / "figure.png", zero, official)
-        for arm, v in summary["arms"].items():
-            print(f"{arm}: final {np.round(v['final'], 1)} at {v['final_steps']} steps, hours to "
-                  f"10x {v['hours_to_10x']} (CPU hours {v['cpu_hours_to_10x']})")  # fmt: skip
-        print(f"TD-MPC2: hours to 10x {summary['tdmpc2_hours_to_10x']} (CPU hours "
-              f"{summary['tdmpc2_cpu_hours_to_10x']})")
-        print(f"wrote {out / 'summary.json'} and {out / 'figure.png'}")
+    root, out, tdmpc2 = Path(args.results), Path(args.out), Path(args.tdmpc2)
+    summary = summarize(root, tdmpc2, Path(args.random))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    official = out / "official_fasttd3" / "eval.csv"
+    if args.official_log:
+        official.parent.mkdir(parents=True, exist_ok=True)
+        official.unlink(missing_ok=True)
+        CsvLog(official).extend(official_rows(Path(args.official_log)))
+    zero = json.loads(Path(args.zero_action).read_text())["mean"] if args.zero_action else None
+    figure(root, tdmpc2, 10 * summary["random_return"], out / "figure.png", zero, official)
+    for arm, v in summary["arms"].items():
+        print(f"{arm}: final {np.round(v['final'], 1)} at {v['final_steps']} steps, hours to "
+              f"10x {v['hours_to_10x']} (CPU hours {v['cpu_hours_to_10x']})")  # fmt: skip
+    print(f"TD-MPC2: hours to 10x {summary['tdmpc2_hours_to_10x']} (CPU hours "
+          f"{summary['tdmpc2_cpu_hours_to_10x']})")
+    print(f"wrote {out / 'summary.json'} and {out / 'figure.png'}")
 
 
 if __name__ == "__main__":

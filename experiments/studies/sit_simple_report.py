@@ -3,7 +3,8 @@
     .venv/bin/python -m experiments.studies.sit_simple_report \
         --results results/sit_simple --out docs/results/sit_simple_study
 
-Reads `<results>/study/{tdmpc2,tdmpbc}/eval.csv` (+ done.json) and `<results>/random.json`;
+Reads the arms `experiments.study sit_simple --arm tdmpc2|tdmpbc` trained under `<results>`
+(or the committed runs' `<results>/study/{tdmpc2,tdmpbc}`) and `<results>/random.json`;
 writes `<out>/summary.json` (the keys the study promises) and `<out>/figure.png`: both arms'
 mean +- std planner eval return over their seeds against env steps, over the published
 TD-MPC2 and BMPC curves of the task, with the TDMPBC arm's R_max and 10x the random return,
@@ -22,31 +23,30 @@ from pathlib import Path
 import numpy as np
 import tyro
 
+from experiments.studies.curves import eval_curves, train_rows
 from sirl_jax.run.reference import reference_curves
-from sirl_jax.run.runlog import CsvLog
 
 TASK = "h1hand-sit_simple-v0"
 ARMS = ("tdmpc2", "tdmpbc")
 REFERENCE_100K = 308.6  # TD-MPC2's published mean at 100k (sirl_jax/data/reference_curves.json)
 
 
+def arms_root(results: Path) -> Path:
+    """Where the arms are: `results`/study (the committed runs), or `results` itself (the
+    arms `experiments.study sit_simple` writes)."""
+    return results / "study" if (results / "study").is_dir() else results
+
+
 def arm_curves(arm_dir: Path) -> dict[int, dict[str, np.ndarray]]:
-    """{seed: {"steps", "return", "r_max"}} of the planner's eval return, by env step."""
-    rows = CsvLog(arm_dir / "eval.csv").rows()
-    seeds: dict[int, dict[str, list]] = {}
-    for r in rows:
-        d = seeds.setdefault(int(r["seed"]), {"steps": [], "return": [], "r_max": []})
-        d["steps"].append(int(r["env_steps"]))
-        d["return"].append(float(r["planner_return"]) if r["planner_return"] != "" else np.nan)
-        d["r_max"].append(float(r["r_max"]) if r["r_max"] != "" else np.nan)
-    return {s: {k: np.asarray(v) for k, v in d.items()} for s, d in sorted(seeds.items())}
+    """{seed: {"steps", "return", "r_max", ...}} of the planner's eval return, by env step."""
+    return eval_curves(arm_dir, "planner_return")
 
 
 def summarize(results: Path) -> dict:
     random = json.loads((results / "random.json").read_text())
     arms, wall = {}, 0.0
     for arm in ARMS:
-        d = results / "study" / arm
+        d = arms_root(results) / arm
         curves = arm_curves(d)
         at = [float(c["return"][c["steps"] == 100_000][0]) if (c["steps"] == 100_000).any()
               else None for c in curves.values()]  # fmt: skip
@@ -55,8 +55,8 @@ def summarize(results: Path) -> dict:
         if (d / "done.json").exists():
             wall = max(wall, float(json.loads((d / "done.json").read_text())["wall_s"]))
         else:
-            last = CsvLog(d / "train.csv").rows()
-            wall = max(wall, float(last[-1]["wall_s"]) if last else 0.0)
+            last = train_rows(d)
+            wall = max(wall, max(float(r["wall_s"]) for r in last) if last else 0.0)
     steps = min(min(a["final_steps"]) for a in arms.values())
     return {"task": TASK, "env_steps_per_seed": steps, "random_return": random["mean"],
             "reference_100k": REFERENCE_100K,
@@ -65,14 +65,14 @@ def summarize(results: Path) -> dict:
 
 
 ENV_LABELS = {"hb": "HumanoidBench's contacts", "reduced": "reduced contacts"}
-"""The figure's name for each of the study's env sets (`sit_simple.ENV_SETS`)."""
+"""The figure's name for each of the study's envs (`specs.STUDY_ENV`, or the task defaults)."""
 
 
 def env_label(arm_dir: Path) -> str:
     """" (<name>)" of the env set whose options the arm's config.json has (an old one reads as
     the env it ran on, `runlog.load_config`), the options themselves if none matches, "" without
     a config.json."""
-    from experiments.studies.sit_simple import ENV_SETS
+    from experiments.studies.specs import STUDY_ENV
     from sirl_jax.config import TrainConfig
     from sirl_jax.run.runlog import RunDirError, load_config
 
@@ -81,7 +81,7 @@ def env_label(arm_dir: Path) -> str:
     except RunDirError:
         return ""
     for name, label in ENV_LABELS.items():
-        if options == TrainConfig(task=TASK, **ENV_SETS[name]).env_options:
+        if options == TrainConfig(task=TASK, **({} if name == "hb" else STUDY_ENV)).env_options:
             return f" ({label})"
     return " (" + ", ".join(f"{k}={v}" for k, v in options.items()) + ")"
 
@@ -96,7 +96,7 @@ def figure(results: Path, summary: dict, out: Path) -> None:
     last = 0
     for arm, color, label in (("tdmpc2", "tab:blue", "TD-MPC2 (beta 0)"),
                               ("tdmpbc", "tab:red", "TDMPBC (beta 1)")):  # fmt: skip
-        curves = list(arm_curves(results / "study" / arm).values())
+        curves = list(arm_curves(arms_root(results) / arm).values())
         n = min(len(c["steps"]) for c in curves)
         steps = curves[0]["steps"][:n]
         ret = np.stack([c["return"][:n] for c in curves])
@@ -124,7 +124,7 @@ def figure(results: Path, summary: dict, out: Path) -> None:
     ax.axhline(bar, color="k", lw=0.8, label=f"10x random ({bar:.0f})")
     ax.set_xlabel("env steps per seed")
     ax.set_ylabel("eval return (planner, eval mode)")
-    ax.set_title(f"{TASK}{env_label(results / 'study' / 'tdmpc2')}: eval return against env steps",
+    ax.set_title(f"{TASK}{env_label(arms_root(results) / 'tdmpc2')}: eval return against env steps",
                  fontsize=10)  # fmt: skip
     ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
@@ -139,12 +139,12 @@ def best_seed(results: Path) -> tuple[str, int, int, float]:
 
     best = None
     for arm in ARMS:
-        ckpt = Checkpointer(results / "study" / arm / "checkpoints")
+        ckpt = Checkpointer(arms_root(results) / arm / "checkpoints")
         try:
             step = ckpt.latest_step()
         finally:
             ckpt.close()
-        for seed, c in arm_curves(results / "study" / arm).items():
+        for seed, c in arm_curves(arms_root(results) / arm).items():
             at = c["steps"] == step
             if step is not None and at.any() and (best is None or c["return"][at][0] > best[3]):
                 best = (arm, seed, step, float(c["return"][at][0]))
@@ -165,7 +165,7 @@ def video(results: Path, out: Path, width: int, height: int) -> dict:
     from sirl_jax.run.runner import build, eval_key
 
     arm, seed, step, ret = best_seed(results)
-    d = results / "study" / arm
+    d = arms_root(results) / arm
     config = load_config(d)
     spec, train = build(config)
     seeds = len(arm_curves(d))

@@ -1,7 +1,10 @@
 """The sit_simple_solved study's summary.json and figure, from its arms' eval.csv (partial too).
 
-    .venv/bin/python -m experiments.studies.sit_simple_solved_report --recipe transition \
+    .venv/bin/python -m experiments.study sit_simple_solved --arm beta1 --seed 0   # each seed
+    .venv/bin/python -m experiments.studies.sit_simple_solved_report \
         --results results/sit_simple_solved --out docs/results/sit_simple_solved
+    .venv/bin/python -m experiments.studies.sit_simple_solved_report --pilot \
+        --results results/sit_simple_solved_pilot    # the pilot's table, pilot.json
 
 summary.json has exactly the keys the issue asks for: task, success_bar, env_steps_per_seed,
 eval_episodes and, per arm, each seed's final 16-episode return, the mean of its last three
@@ -20,17 +23,13 @@ from pathlib import Path
 import numpy as np
 import tyro
 
-# experiments.studies.parallel_learner (eval_curves, ...) imports MuJoCo: imported in the
-# functions, so that `main` can choose the GL backend first for --with-video
+from experiments.studies.curves import eval_curves, has_evals, hours_to
+from experiments.studies.specs import RECIPES
+from experiments.studies.specs import SIT as TASK
 
 BAR, ZERO_ACTION = 750.0, 647.0  # HumanoidBench's bar; the zero action's return (the issue's)
 ARM_LABELS = {"beta0": ("FastTD3 (beta 0)", "tab:green"),
               "beta1": ("FastTD3 + TDMPBC term (beta 1)", "tab:purple")}  # fmt: skip
-
-
-def has_evals(arm_dir: Path) -> bool:
-    """The arm ran: its eval.csv, or one per seed (seed*/eval.csv)."""
-    return (arm_dir / "eval.csv").exists() or any(arm_dir.glob("seed*/eval.csv"))
 
 
 SUMMARY_KEYS = ("final", "last3_mean", "hours_to_bar")
@@ -38,8 +37,6 @@ SUMMARY_KEYS = ("final", "last3_mean", "hours_to_bar")
 
 def summarize(root: Path) -> tuple[dict, dict]:
     """(summary.json, details.json): the issue's keys, and the rest of each arm's figures."""
-    from experiments.studies.parallel_learner import TASK, eval_curves, hours_to
-
     arms, steps = {}, []
     for arm in ARM_LABELS:
         if not has_evals(root / arm):
@@ -66,7 +63,6 @@ def summarize(root: Path) -> tuple[dict, dict]:
 def figure(root: Path, published: Path, out: Path) -> None:
     import matplotlib
 
-    from experiments.studies.parallel_learner import TASK, eval_curves
     from sirl_jax.run.reference import reference_curves
 
     matplotlib.use("Agg")
@@ -111,7 +107,6 @@ def video(arm_dir: Path, out: Path, frames: int = 6) -> str:
     import imageio.v2 as imageio
     import jax
 
-    from experiments.studies.parallel_learner import eval_curves
     from sirl_jax.run.checkpoint import Checkpointer
     from sirl_jax.run.render import render_policy
     from sirl_jax.run.runlog import load_config
@@ -121,16 +116,22 @@ def video(arm_dir: Path, out: Path, frames: int = 6) -> str:
     seed = max(curves, key=lambda s: curves[s]["return"][-1])
     alone = (arm_dir / f"seed{seed}").is_dir()  # the seed ran as its own process
     run_dir = arm_dir / f"seed{seed}" if alone else arm_dir
-    config = load_config(run_dir)
+    swept = next((d for d in (run_dir / f"seed={seed}",) if d.is_dir()), None)  # a sweep's run
+    config = load_config(swept or run_dir)
     spec, train = build(config)
     keys = jax.random.split(jax.random.PRNGKey(0), 1 if alone else len(curves))
-    ckpt = Checkpointer(run_dir / "checkpoints")
+    ckpt = Checkpointer((swept or run_dir) / "checkpoints")
     try:
         step = ckpt.latest_step()
-        state = ckpt.restore({"state": jax.eval_shape(jax.vmap(train.init), keys)}, step)
+        if swept:  # one run's state, its buffer a checkpoint item of its own
+            abstract = jax.eval_shape(train.init, keys[0]).replace(buffer=None)
+        else:  # the vmapped state of the arm's seeds
+            abstract = jax.eval_shape(jax.vmap(train.init), keys)
+        state = ckpt.restore({"state": abstract}, step)
     finally:
         ckpt.close()
-    agent_state = jax.tree.map(lambda x: x[0 if alone else seed], state["state"].agent)
+    pick = (lambda x: x) if swept else (lambda x: x[0 if alone else seed])
+    agent_state = jax.tree.map(pick, state["state"].agent)
     mp4 = out / "best_seed.mp4"
     summary = render_policy(train.env, train.agent, agent_state, "prior", 1,
                             eval_key(seed, step), mp4,
@@ -143,18 +144,55 @@ def video(arm_dir: Path, out: Path, frames: int = 6) -> str:
             f"{summary['frames']} frames, {mp4.stat().st_size / 1e6:.2f} MB")
 
 
-def main(recipe: str = "transition", results: Path = Path("results/sit_simple_solved"),
-         out: Path = Path("docs/results/sit_simple_solved"),
-         with_video: bool = False) -> None:  # fmt: skip
-    """Writes `out`/summary.json and `out`/figure.png for `recipe`'s arms under `results`
-    (and with `with_video` the best beta-1 seed's mp4 and frame strip)."""
+def pilot_rows(results: Path) -> list[dict]:
+    """Each recipe's 16-episode evaluations at equal training CPU: up to the CPU time every
+    recipe's run has reached, the later half of it summarised (mean, min, max, evaluations at
+    the bar, mean change between consecutive evaluations), with the first one at the bar."""
+    curves = {}
+    for name in RECIPES:
+        if has_evals(results / name):
+            (curves[name],) = eval_curves(results / name, "policy_return").values()
+    if not curves:
+        raise SystemExit(f"error: no recipe under {results} has evaluations yet")
+    limit = min(float(c["cpu_h"][-1]) for c in curves.values())
+    rows = []
+    for name, c in curves.items():
+        keep = (c["cpu_h"] <= limit + 1e-9) & (c["steps"] > 0)
+        late = keep & (c["cpu_h"] >= limit / 2)
+        r = c["return"][late]
+        hit = np.flatnonzero(keep & (c["return"] >= BAR))
+        rows.append({
+            "recipe": name, "cpu_h": round(limit, 3), "evals_late": int(late.sum()),
+            "steps_at_limit": int(c["steps"][keep][-1]), "late_mean": round(float(r.mean()), 1),
+            "late_min": round(float(r.min()), 1), "late_max": round(float(r.max()), 1),
+            "late_at_bar": int(np.sum(r >= BAR)),
+            "swing": round(float(np.mean(np.abs(np.diff(r)))), 1) if r.size > 1 else None,
+            "last": round(float(c["return"][keep][-1]), 1),
+            "first_bar_steps": int(c["steps"][hit[0]]) if hit.size else None,
+        })  # fmt: skip
+    return rows
+
+
+def main(recipe: str = "", results: Path = Path("results/sit_simple_solved"),
+         out: Path = Path("docs/results/sit_simple_solved"), with_video: bool = False,
+         pilot: bool = False) -> None:  # fmt: skip
+    """Writes `out`/summary.json and `out`/figure.png for the arms under `results` (or
+    `results`/`recipe`: the committed runs' layout), and with `with_video` the best beta-1
+    seed's mp4 and frame strip; `pilot`: the pilot's table as `results`/pilot.json."""
+    if pilot:
+        rows = pilot_rows(results)
+        (results / "pilot.json").write_text(json.dumps(rows, indent=1))
+        for r in rows:
+            print(r)
+        return
     if with_video:  # MuJoCo reads MUJOCO_GL once, at import
         from sirl_jax.run.render import select_gl
 
         select_gl()
-    root = results / recipe
+    root = results / recipe if recipe else results
     if not any(has_evals(root / arm) for arm in ARM_LABELS):
-        raise SystemExit(f"error: no arm of {root} has an eval.csv yet (run --arm beta1 first)")
+        raise SystemExit(f"error: no arm of {root} has an eval.csv yet (run experiments.study "
+                         "sit_simple_solved --arm beta1 first)")
     summary, details = summarize(root)
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")

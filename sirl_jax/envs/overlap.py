@@ -3,7 +3,7 @@
 HumanoidBench's obstacle penalties and balance's termination scan every contact MuJoCo found.
 MJX's contact slots are a pruned subset (`max_geom_pairs` keeps the k candidate pairs with the
 closest bounding spheres per collision function), and its capsule-box narrow phase misses some
-edge contacts (`experiments/fidelity/mjx_capsule_box_miss.py`). A rule that must see every
+edge contacts (docs/tasks.md, "MJX's capsule-box miss"). A rule that must see every
 touching pair asks `PairQuery` instead: once per control step, on the kinematics `mjx.step`
 returned, whether any pair of a static list of geom pairs overlaps.
 

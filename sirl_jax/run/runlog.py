@@ -63,7 +63,9 @@ def load_config(run_dir: Path, sweep_ok: bool = False) -> Config:
     saved before `train.contact_set` existed reads as "reduced", the set it was trained with, one
     saved before `train.hand_floor` existed as "none" (and, on a task of
     `CONTACT_SET_LOCOMOTION`, with the "reduced" set) and one saved before
-    `train.contact_budget` existed as 0 (no budget), so it resumes as it ran."""
+    `train.contact_budget` existed as 0 (no budget), and one saved before
+    `fasttd3.replay_sampling` existed as "episode" (TD-MPC2's sampler, which FastTD3 used
+    then), so it resumes as it ran."""
     runs = None if sweep_ok else sweep_runs(run_dir)
     if runs:
         raise RunDirError(f"{run_dir} is a sweep of {len(runs)} runs, not one run; give one of "
@@ -80,6 +82,9 @@ def load_config(run_dir: Path, sweep_ok: bool = False) -> Config:
                 if _short(raw["train"].get("task", "")) in CONTACT_SET_LOCOMOTION:
                     raw["train"]["contact_set"] = REDUCED  # what "hb" was in these scenes
             raw["train"].setdefault("contact_budget", 0)
+        agent = raw.get("agent") if isinstance(raw.get("agent"), dict) else {}
+        if agent.get("kind") == "fasttd3" and isinstance(agent.get("fasttd3"), dict):
+            agent["fasttd3"].setdefault("replay_sampling", "episode")  # drawn TD-MPC2's way
         return config_from_dict(Config, raw, str(path))
     except (TypeError, ValueError) as e:
         raise RunDirError(f"{path} is invalid: {e}") from e

@@ -83,9 +83,11 @@ def shard_envs(train: Train, devices: int, key: jax.Array) -> tuple[Train, Any]:
     return make_train(t, train.env, constrain_batch=batch_constraint(mesh)), shardings
 
 
-def eval_key(seed: int, env_steps: int) -> jax.Array:
-    """The evaluation key of a run at `env_steps` (the same for `train` and `eval`)."""
-    base = jax.random.fold_in(jax.random.PRNGKey(seed), _EVAL_STREAM)
+def eval_key(seed: int | jax.Array, env_steps: int) -> jax.Array:
+    """The evaluation key of a run at `env_steps` (the same for `train` and `eval`); `seed`:
+    the run's seed, or its key where that is not PRNGKey(seed) (`Sweep.split`)."""
+    key = jax.random.PRNGKey(seed) if isinstance(seed, int) else seed
+    base = jax.random.fold_in(key, _EVAL_STREAM)
     return jax.random.fold_in(base, env_steps)
 
 

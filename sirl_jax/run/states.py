@@ -29,15 +29,17 @@ def copy_state(state: Any) -> Any:
     return jax.tree.map(jnp.copy, state)
 
 
-def save_state(ckpt: Checkpointer, state: Any, save_buffer: bool) -> int:
-    """Saves `state` as checkpoint `state.env_steps` (no-op if it exists); returns the step."""
+def save_state(ckpt: Checkpointer, state: Any, save_buffer: bool,
+               extra: dict | None = None) -> int:  # fmt: skip
+    """Saves `state` as checkpoint `state.env_steps` (no-op if it exists); returns the step.
+    `extra`: more JSON-able entries for the checkpoint's meta."""
     step, updates = (int(x) for x in jax.device_get((state.env_steps, state.updates)))
     if step not in ckpt.steps():
         items = {"state": state.replace(buffer=None)}
         if save_buffer:
             items["buffer"] = state.buffer
         meta = {"env_steps": step, "updates": updates, "save_buffer": save_buffer,
-                "time": time.time()}  # fmt: skip
+                "time": time.time(), **(extra or {})}  # fmt: skip
         ckpt.save(step, items, meta)
     return step
 

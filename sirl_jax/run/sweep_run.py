@@ -41,7 +41,41 @@ SWEEP_FILE = "sweep.json"
 def load_sweep(run_dir: Path) -> Sweep:
     """The sweep a sweep directory was trained with (its sweep.json)."""
     raw = json.loads((run_dir / SWEEP_FILE).read_text())
-    return Sweep(int(raw["seeds"]), tuple((f, tuple(vs)) for f, vs in raw["axes"].items()))
+    return Sweep(int(raw["seeds"]), tuple((f, tuple(vs)) for f, vs in raw["axes"].items()),
+                 int(raw.get("first_seed", 0)), int(raw.get("split", 0)))  # fmt: skip
+
+
+class Clock:
+    """The program's seconds, carried across resumes in each checkpoint's meta: `time/wall_s`
+    since the sweep began, evaluations and checkpoints included (what a user waits); and
+    `time/train_cpu_s`, the process CPU time of all threads outside evaluations (the unit in
+    which configs that share a machine with other work compare fairly), which the program's
+    runs share."""
+
+    FIELDS = ("time/wall_s", "time/train_cpu_s")
+
+    def __init__(self, wall_s: float = 0.0, train_cpu_s: float = 0.0):
+        self.wall0, self.cpu0 = wall_s, train_cpu_s
+        self.t0, self.c0, self.set_aside = time.perf_counter(), time.process_time(), 0.0
+
+    def start(self) -> None:
+        self.t0, self.c0, self.set_aside = time.perf_counter(), time.process_time(), 0.0
+
+    def train_cpu(self) -> float:
+        return self.cpu0 + time.process_time() - self.c0 - self.set_aside
+
+    @contextlib.contextmanager
+    def aside(self):
+        """CPU time spent inside is not training's."""
+        c = time.process_time()
+        try:
+            yield
+        finally:
+            self.set_aside += time.process_time() - c
+
+    def read(self) -> dict[str, float]:
+        wall = self.wall0 + time.perf_counter() - self.t0
+        return dict(zip(self.FIELDS, (round(wall, 1), round(self.train_cpu(), 1)), strict=True))
 
 
 def _slice(tree, r: int):
@@ -72,8 +106,10 @@ class SweepRun:
         self.dirs = [run_dir / n for n in self.names]
         self.ckpts = [Checkpointer(d / "checkpoints", max_to_keep=keep) for d in self.dirs]
         self.tensorboard, self.show_progress = tensorboard, show_progress
+        self.keys = sweep.keys(config)
         self.best = [(-math.inf, 0)] * len(sweep)
         self.failed: dict[int, str] = {}
+        self.clock = Clock()
 
     def restore(self, train) -> tuple[object, int]:
         for c in self.ckpts:
@@ -82,24 +118,29 @@ class SweepRun:
         step = _common_step(self.ckpts, self.names)
         states = [restore_state(c, train.init, jax.random.PRNGKey(cfg.train.seed), step)[0]
                   for c, cfg in zip(self.ckpts, self.configs, strict=True)]  # fmt: skip
+        meta = self.ckpts[0].meta(step)
+        self.clock = Clock(*(float(meta.get(k, 0.0)) for k in Clock.FIELDS))
         for r, c in enumerate(self.ckpts):
             best = c.best()
             self.best[r] = (best["value"], best["step"]) if best else (-math.inf, 0)
         return commit(jax.tree.map(lambda *xs: jnp.stack(xs), *states)), step
 
     def save(self, state, r: int) -> int:
-        return save_state(self.ckpts[r], _slice(state, r), self.config.train.save_buffer)
+        return save_state(self.ckpts[r], _slice(state, r), self.config.train.save_buffer,
+                          self.clock.read())  # fmt: skip
 
     def evaluate(self, eval_fn, state, env_steps: int, logs, bar) -> None:
-        keys = jnp.stack([eval_key(c.train.seed, env_steps) for c in self.configs])
-        ev = jax.device_get(eval_fn(state, keys))
+        with self.clock.aside():
+            keys = jnp.stack([eval_key(k, env_steps) for k in self.keys])
+            ev = jax.device_get(eval_fn(state, keys))
+        clock = self.clock.read()
         which = "planner" if self.config.agent.plans else "policy"
         shown = []
         for r, log in enumerate(logs):
             if r in self.failed:
                 continue
             metrics = prog.host_scalars(_slice(ev, r))
-            log.log("eval", env_steps, metrics)
+            log.log("eval", env_steps, {**metrics, **clock})
             value = metrics[f"eval/{which}_return"]
             shown.append(f"{self.names[r]} {value:.4g}")
             if value > self.best[r][0]:  # kept past --keep: eval/render/export --best
@@ -116,16 +157,25 @@ class SweepRun:
                 f"runs); about {prog.format_duration(seconds * left / steps)} to go "
                 "(evaluations and checkpoints not counted)")  # fmt: skip
 
-    def loop(self, train, state, logs) -> None:
+    def loop(self, train, state, logs, eval_at_start: bool = False, until: int | None = None,
+             budget_cpu_s: float | None = None) -> None:  # fmt: skip
+        """Trains to `train.steps`, or to `until` env steps, or until the training chunks have
+        used `budget_cpu_s` of process CPU (evaluated and saved then); `eval_at_start`: an
+        evaluation before the first chunk of a fresh sweep (the untrained networks)."""
         t, names = self.config.train, self.names
+        last = min(t.steps, until or t.steps)
         step_fn = jax.jit(jax.vmap(train.step), donate_argnums=0)
         eval_fn = jax.jit(jax.vmap(train.evaluate))
         env_steps = int(jax.device_get(state.env_steps)[0])
         means = [prog.MetricMean() for _ in names]
         bar = prog.Progress(t.steps, env_steps, enabled=self.show_progress)
+        self.clock.start()
         with prog.StopOnSigint() as stop, contextlib.closing(bar):
+            if eval_at_start and env_steps == 0:
+                self.evaluate(eval_fn, state, 0, logs, bar)
             chunks, costed = 0, False
-            while env_steps < t.steps and not stop.requested:
+            over = budget_cpu_s is not None and self.clock.train_cpu() >= budget_cpu_s
+            while env_steps < last and not stop.requested and not over:
                 before, t0 = env_steps, time.perf_counter()
                 state, metrics = step_fn(state)
                 metrics = jax.device_get(metrics)
@@ -147,16 +197,17 @@ class SweepRun:
                         continue
                     means[r].add(m)
                     if prog.crossed(before, env_steps, t.log_every) or env_steps >= t.steps:
-                        logs[r].log("metrics", env_steps, means[r].pop())
+                        logs[r].log("metrics", env_steps, {**means[r].pop(), **self.clock.read()})
                 alive = [r for r in alive if r not in self.failed]
                 if not alive:
                     raise TrainingFailure(f"every run of the sweep failed: {self.failed}")
                 head = prog.host_scalars(_slice(metrics, alive[0]))
                 bar.update(env_steps, int(head["updates"]) * len(alive), head)
-                evaluated = prog.crossed(before, env_steps, t.eval_every)
+                over = budget_cpu_s is not None and self.clock.train_cpu() >= budget_cpu_s
+                evaluated = prog.crossed(before, env_steps, t.eval_every) or over
                 if evaluated:
                     self.evaluate(eval_fn, state, env_steps, logs, bar)
-                saved = prog.crossed(before, env_steps, t.checkpoint_interval)
+                saved = prog.crossed(before, env_steps, t.checkpoint_interval) or over
                 for r in alive if saved else ():
                     self.save(state, r)
                 if evaluated or saved:
@@ -166,7 +217,9 @@ class SweepRun:
                 if stop.requested and means[r].pending():
                     logs[r].log("metrics", env_steps, means[r].pop())
                 self.save(state, r)
-        how = "stopped (Ctrl-C/SIGTERM)" if env_steps < t.steps else "done"
+        how = ("done" if env_steps >= t.steps else "stopped at the CPU budget" if over
+               else f"stopped (until {until:,})" if env_steps >= last
+               else "stopped (Ctrl-C/SIGTERM)")  # fmt: skip
         print(f"sweep {how} at env step {env_steps:,} per run: {len(names) - len(self.failed)} "
               f"of {len(names)} runs saved in {self.run_dir}/<run>/checkpoints"
               + (f"; continue with: python -m sirl_jax train --resume {self.run_dir}"
@@ -177,8 +230,9 @@ class SweepRun:
 
 def sweep_run(config: Config, sweep: Sweep, run_dir: Path, *, resuming: bool = False,
               keep: int = 3, show_progress: bool = True,
-              tensorboard: bool = True) -> None:  # fmt: skip
-    """Trains (or resumes) every run of `sweep` over `config` in one program under `run_dir`."""
+              tensorboard: bool = True, **stop) -> None:  # fmt: skip
+    """Trains (or resumes) every run of `sweep` over `config` in one program under `run_dir`;
+    `stop`: `SweepRun.loop`'s eval_at_start, until and budget_cpu_s."""
     from sirl_jax.run.buffer_memory import check_buffer_fits
 
     spec, train = build(config)
@@ -199,7 +253,7 @@ def sweep_run(config: Config, sweep: Sweep, run_dir: Path, *, resuming: bool = F
         runlog.write_json(run_dir / "config.json", config_to_dict(config))  # what --resume reads
         runlog.write_json(run_dir / SWEEP_FILE, {
             "seeds": sweep.seeds, "axes": {f: list(vs) for f, vs in sweep.axes},
-            "runs": run.names})  # fmt: skip
+            "first_seed": sweep.first_seed, "split": sweep.split, "runs": run.names})  # fmt: skip
         logs = []
         for d, cfg in zip(run.dirs, run.configs, strict=True):
             runlog.write_json(d / "config.json", config_to_dict(cfg))
@@ -208,7 +262,7 @@ def sweep_run(config: Config, sweep: Sweep, run_dir: Path, *, resuming: bool = F
             if step is not None:
                 logs[-1].drop_after(step)
         try:
-            run.loop(train, state, logs)
+            run.loop(train, state, logs, **stop)
         finally:
             for log in logs:
                 log.close()

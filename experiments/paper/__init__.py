@@ -1,1 +1,0 @@
-"""The TDMPBC paper's experiments as commands (see experiments/paper/README.md)."""
