@@ -60,14 +60,21 @@ class PlaygroundEnv(Env):
         impl: str | None = "jax",
         action_repeat: int = 1,
         physics: Physics | None = None,
+        instance: Any = None,
     ):
+        """instance: an `MjxEnv` to adapt as it is (e.g. `sirl_jax.envs.playground_env`'s),
+        instead of loading `name` from Playground's registry (MJX-JAX only)."""
+        if action_repeat < 1:
+            raise ValueError(f"action_repeat={action_repeat!r} is invalid; allowed: >= 1")
+        if instance is not None:
+            self.env, self.sim, self.name, self.action_repeat = instance, None, name, action_repeat
+            self._describe()
+            return
         suite, env_name = _split_name(name)
         registry = _import_playground()
         valid = registry.dm_control_suite.ALL_ENVS if suite == "dmc" else registry.ALL_ENVS
         if env_name not in valid:
             raise ValueError(f"unknown {suite} env {env_name!r}; valid: {', '.join(valid)}")
-        if action_repeat < 1:
-            raise ValueError(f"action_repeat={action_repeat!r} is invalid; allowed: >= 1")
         if physics is None and impl == "warp":
             physics = Physics("warp")
         impl = physics.impl if physics is not None else impl
@@ -85,8 +92,10 @@ class PlaygroundEnv(Env):
             self.env = registry.load(env_name, config_overrides=overrides)
         self.name = name
         self.action_repeat = action_repeat
-        config = self.env._config
-        self._episode_length = int(config.episode_length) // action_repeat
+        self._describe()
+
+    def _describe(self) -> None:
+        self._episode_length = int(self.env._config.episode_length) // self.action_repeat
         probe = jax.eval_shape(self.env.reset, jax.random.PRNGKey(0))
         self._obs_size = int(self._flat_obs(probe.obs).shape[-1])
         self._metric_names = tuple(sorted(probe.metrics))
