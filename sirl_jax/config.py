@@ -93,6 +93,9 @@ class TrainConfig:
     """Save the replay buffer with checkpoints (resuming without it destabilises, tdmpc2#28)."""
     log_every: int = 10_000
     """Env steps between log lines; metrics are aggregated over the chunks in between."""
+    video_every: int = 0
+    """Env steps between training videos (0 = none): one eval episode rendered into
+    RUN/videos/step_<env steps>.mp4, TensorBoard and wandb (`sirl_jax/run/videos.py`)."""
     max_blowup_rate: float = 0.01
     """A physics blow-up (non-finite qpos, qvel, observation or reward) resets that env and
     drops its running episode; the run stops, with the last good state saved, only when a
@@ -123,6 +126,7 @@ class TrainConfig:
         )
         _check(self.buffer_size >= 1, "train.buffer_size", self.buffer_size, "an int >= 1")
         _check(self.eval_every >= 0, "train.eval_every", self.eval_every, "an int >= 0")
+        _check(self.video_every >= 0, "train.video_every", self.video_every, "an int >= 0")
         _check(self.eval_episodes >= 1, "train.eval_episodes", self.eval_episodes, "an int >= 1")
         _check(
             self.checkpoint_every is None or self.checkpoint_every >= 0,

@@ -265,6 +265,10 @@ def _dispatch(argv: list[str]) -> int:
         return EXIT_OK if argv else EXIT_USAGE
     command, rest = argv[0], argv[1:]
     if command == "train":
+        from sirl_jax.run.videos import prepare_gl, wants_video
+
+        if wants_video(expand_short_flags(rest), _flag_value):  # before MuJoCo is imported
+            prepare_gl()
         return train(*parse_train_args(rest))
     if command == "tasks":
         return tasks()

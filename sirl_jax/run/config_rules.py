@@ -13,7 +13,7 @@ from sirl_jax.config import Config, flatten_config
 
 RESUME_MUTABLE = frozenset(
     {"train.steps", "train.eval_every", "train.eval_episodes", "train.checkpoint_every",
-     "train.log_every", "train.save_buffer", "train.max_blowup_rate"}
+     "train.log_every", "train.save_buffer", "train.max_blowup_rate", "train.video_every"}
 )  # fmt: skip
 """Config fields a resumed run may change; every other field must match the saved config."""
 

@@ -130,9 +130,15 @@ def cost_text(metrics: list[dict], starts: list[dict]) -> str:
             "compilation included)")
 
 
+def training_videos(run_dir: Path) -> list[Path]:
+    """The videos `--train.video-every` wrote, by env step."""
+    return sorted((run_dir / "videos").glob("step_*.mp4"))
+
+
 def latest_video(run_dir: Path) -> Path | None:
-    """The newest .mp4 under the run directory, or None."""
-    videos = [p for p in run_dir.rglob("*.mp4") if p.is_file()]
+    """The newest .mp4 under the run directory that is not a training video, or None."""
+    training = set(training_videos(run_dir))
+    videos = [p for p in run_dir.rglob("*.mp4") if p.is_file() and p not in training]
     return max(videos, key=lambda p: p.stat().st_mtime) if videos else None
 
 
@@ -192,7 +198,8 @@ def gather(run_dir: Path, curves: bool = True) -> Report:
         random_return=_number(random_rows[-1]["eval/random_return"]) if random_rows else None,
         r_max_last=r_max[-1] if r_max else math.nan, r_max_best=max(r_max, default=math.nan),
         counters=run_counters(metrics, evals), cost=cost_text(metrics, starts), starts=starts,
-        video=latest_video(run_dir), best=best_checkpoint(run_dir),
+        video=latest_video(run_dir), videos=training_videos(run_dir),
+        best=best_checkpoint(run_dir),
     )  # fmt: skip
     if not evals:
         report.notes.append(f"no evaluations yet: run `python -m sirl_jax eval {run_dir}`")

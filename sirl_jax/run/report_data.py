@@ -34,6 +34,7 @@ class Report:
     plot_png: bytes | None = None
     notes: list[str] = field(default_factory=list)  # collapses, missing references/evals
     video: Path | None = None
+    videos: list[Path] = field(default_factory=list)  # training videos (videos/step_*.mp4)
     best: dict | None = None  # the checkpoint marked best at evaluation (`read_best`)
 
 

@@ -110,6 +110,25 @@ def _video(r: Report) -> str:
             f'src="{uri}"></video>')  # fmt: skip
 
 
+def _training_videos(r: Report) -> str:
+    """Every training video in env-step order, embedded while they fit `VIDEO_LIMIT` together."""
+    if not r.videos:
+        return ""
+    items, left = [], VIDEO_LIMIT
+    for path in r.videos:
+        name, size = _e(path.relative_to(r.run_dir)), path.stat().st_size
+        step = int(path.stem.removeprefix("step_"))
+        if size <= left:
+            left -= size
+            uri = data_uri("video/mp4", path.read_bytes())
+            items.append(f'<figure><figcaption class=sub>env step {step:,}: {name}</figcaption>'
+                         f'<video controls loop muted playsinline src="{uri}"></video></figure>')
+        else:
+            items.append(f"<p class=note>env step {step:,}: {name} ({size / 2**20:.1f} MiB, "
+                         "not embedded: the page holds the earlier ones)</p>")  # fmt: skip
+    return f"<h2>Training videos ({len(r.videos)})</h2>" + "".join(items)
+
+
 def _config(r: Report) -> str:
     fields = "".join(f"<div><code>{_e(k)}</code> {_e(v)}</div>"
                      for k, v in sorted(r.config.items()))  # fmt: skip
@@ -137,7 +156,7 @@ def to_html(r: Report) -> str:
 <h2>Evaluation over checkpoints</h2>{_eval_table(r) or "<p class=sub>none yet</p>"}
 <h2>Curves</h2>{curves}{notes}
 <h2>Counters</h2>{_counters(r)}
-<h2>Latest video</h2>{_video(r)}
+<h2>Latest video</h2>{_video(r)}{_training_videos(r)}
 <h2>Config</h2>{_config(r)}
 """)
 

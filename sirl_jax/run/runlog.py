@@ -266,6 +266,10 @@ class RunLog:
             self._wandb.log(scalars, step=int(env_steps))
         return row
 
+    def writers(self) -> tuple[Any, Any]:
+        """(the TensorBoard writer or None, the wandb run or None): for what is not a scalar."""
+        return self._tb, self._wandb
+
     def close(self) -> None:
         if self._tb is not None:
             self._tb.close()

@@ -129,6 +129,7 @@ class Run:
     best: tuple[float, int] = (-math.inf, 0)  # best eval return so far and its env step
     collapse: str | None = None  # the first collapse warning, repeated in the final summary
     shardings: Any = None  # the state's layout over devices (`shard_envs`); None: one device
+    videos: Any = None  # `videos.TrainingVideos` with --train.video-every, else None
 
     def evaluate(self, eval_fn, state, env_steps: int) -> dict[str, float]:
         key = eval_key(self.config.train.seed, env_steps)
@@ -198,6 +199,8 @@ class Run:
                 evaluated = prog.crossed(before, env_steps, t.eval_every)
                 if evaluated:
                     self.evaluate(eval_fn, state, env_steps)
+                if self.videos is not None:
+                    self.videos.maybe(state, before, env_steps)
                 saved = prog.crossed(before, env_steps, t.checkpoint_interval)
                 if saved:
                     self.saved = self.save(state)
@@ -320,7 +323,11 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
                                 enabled=show_progress)  # fmt: skip
             best = ckpt.best() if saved is not None else None
             best = (best["value"], best["step"]) if best else (-math.inf, 0)
-            Run(config, train, ckpt, log, bar, guard, saved, best, shardings=shardings).loop(state)
+            from sirl_jax.run.videos import TrainingVideos
+
+            videos = TrainingVideos(config, train, run_dir, log, bar.write, eval_key)
+            Run(config, train, ckpt, log, bar, guard, saved, best, shardings=shardings,
+                videos=videos if config.train.video_every else None).loop(state)
         finally:
             log.close()
     finally:

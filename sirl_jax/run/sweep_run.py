@@ -283,7 +283,8 @@ def sweep_command(args) -> None:
     from sirl_jax.sweep import SweepError
 
     unsupported = [(args.devices != 1, f"--devices {args.devices}"), (args.wandb, "--wandb"),
-                   (args.resume_step is not None, "--resume-step")]  # fmt: skip
+                   (args.resume_step is not None, "--resume-step"),
+                   (args.config.train.video_every > 0, "--train.video-every")]  # fmt: skip
     for given, flag in unsupported:
         if given:
             raise UsageError(f"{flag} cannot be combined with a sweep (--seeds/--sweep); "
