@@ -89,6 +89,8 @@ def paper_scale(scale: str) -> Callable[[str], Config]:
 
 
 BETA = "agent.sirl.beta"
+BETAS = {"beta0": {BETA: 0.0}, "beta1": {BETA: 1.0}}  # FastTD3 without and with the term
+TDMPC2_ARMS = {"tdmpc2": {BETA: 0.0}, "tdmpbc": {BETA: 1.0}}  # TD-MPC2 and TDMPBC
 PILOT_TDMPC2 = {  # the sit_simple pilots: agent fields over AgentConfig.small; train fields
     "e8-utd025": ({}, dict(num_envs=8, utd=0.25, seed_steps=8_000)),
     "e4-utd1": ({}, dict(num_envs=4, utd=1.0, seed_steps=4_000)),
@@ -114,31 +116,32 @@ STUDIES: dict[str, Study] = {
     "sit_simple_solved": Study(
         "FastTD3 + the TDMPBC term past HumanoidBench's bar: 400k steps, 16 episodes every 20k",
         lambda task: fasttd3_cpu(task, 400_000, 20_000, 16, "transition"),
-        {"beta0": {BETA: 0.0}, "beta1": {BETA: 1.0}},
-        report="experiments.studies.sit_simple_solved_report --recipe transition"),
+        BETAS,
+        report="experiments.studies.sit_simple_solved_report --results results/sit_simple_solved"),
     "sit_simple_solved_pilot": Study(
         "the solved study's recipes at beta 1, one seed each at equal training CPU",
         lambda task: fasttd3_cpu(task, 300_000, 10_000, 16, "episode"),
         {name: {f"agent.fasttd3.{k}": v for k, v in fields.items()}
          for name, fields in RECIPES.items()},
         seeds=1, budget_cpu_s=2000.0,
-        report="experiments.studies.sit_simple_solved_report --pilot"),
+        report="experiments.studies.sit_simple_solved_report --pilot --results "
+               "results/sit_simple_solved_pilot"),
     "parallel_learner": Study(
         "FastTD3 (beta 0) against FastTD3 + SIRL (beta 1) against wall-clock, 200k steps",
         lambda task: fasttd3_cpu(task, 200_000, 10_000, 4, "episode"),
-        {"beta0": {BETA: 0.0}, "beta1": {BETA: 1.0}},
+        BETAS,
         report="experiments.studies.parallel_learner --out docs/results/parallel_learner"),
     "sit_simple": Study(
         "TD-MPC2 (beta 0) against TDMPBC (beta 1) at the pilot's winner, 100k steps",
         lambda task: override(_pilot_tdmpc2("e4-utd1")(task), {"train.eval_every": 10_000}),
-        {"tdmpc2": {BETA: 0.0}, "tdmpbc": {BETA: 1.0}},
+        TDMPC2_ARMS,
         report="experiments.studies.sit_simple_report --out docs/results/sit_simple_study"),
     "sit_simple_hb": Study(
         "the sit_simple study to 200k steps on HumanoidBench's contact set (the task defaults)",
         lambda task: override(_pilot_tdmpc2("e4-utd1")(task), {
             "train.eval_every": 10_000, "train.steps": 200_000, "train.buffer_size": 200_000,
             **{f"train.{k}": getattr(TrainConfig(), k) for k in STUDY_ENV}}),
-        {"tdmpc2": {BETA: 0.0}, "tdmpbc": {BETA: 1.0}},
+        TDMPC2_ARMS,
         report="experiments.studies.sit_simple_report --out docs/results/sit_simple_study"),
     "sit_simple_pilot": Study(
         "TD-MPC2 configs at beta 0, one seed each at equal training CPU, 4 episodes every 5k",
@@ -163,6 +166,6 @@ for _scale in ("cpu", "paper"):
             paper_scale(_scale), _arms, task="stand",
             report="experiments.studies.paper_report")  # fmt: skip
 STUDIES["humanoid_study"] = dataclasses.replace(
-    STUDIES["paper_table_cpu"], arms={"tdmpc2": {BETA: 0.0}, "tdmpbc": {BETA: 1.0}},
+    STUDIES["paper_table_cpu"], arms=TDMPC2_ARMS,
     doc="TD-MPC2 against TDMPBC on h1-stand at CPU scale (paper_table_cpu's arms)",
     report="experiments.studies.paper_report --humanoid")
