@@ -167,7 +167,9 @@ def train(args: TrainArgs, derived: dict) -> int:
         sweep_command(args)
         return EXIT_OK
 
-    train_command(args, derived)
+    from sirl_jax.run.videos import TrainingVideos
+
+    train_command(args, derived, TrainingVideos)
     return EXIT_OK
 
 

@@ -227,7 +227,7 @@ def check_resume_step(ckpt: Checkpointer, step: int | None) -> None:
         )
 
 
-def train_command(args, derived: dict) -> None:
+def train_command(args, derived: dict, videos_factory=None) -> None:
     """`train` from parsed `cli.TrainArgs`: the run dir, the wandb extra, then `train_run`."""
     from sirl_jax.run.compile_cache import enable_compilation_cache
 
@@ -252,7 +252,7 @@ def train_command(args, derived: dict) -> None:
     train_run(config, run_dir, resume_step=args.resume_step, resuming=resuming, derived=derived,
               keep=args.keep, guard=args.guard, show_progress=args.progress,
               tensorboard=args.tensorboard, wandb_run_factory=wandb_run_factory,
-              devices=args.devices)  # fmt: skip
+              devices=args.devices, videos_factory=videos_factory)  # fmt: skip
 
 
 def print_tasks() -> None:
@@ -274,8 +274,10 @@ def print_tasks() -> None:
 def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
               resuming: bool = False, derived: dict | None = None, keep: int = 3,
               guard: bool = True, show_progress: bool = True, tensorboard: bool = True,
-              wandb_run_factory=None, devices: int = 1) -> None:  # fmt: skip
-    """The body of `train`: build, restore or init, log the run's facts, run the loop."""
+              wandb_run_factory=None, devices: int = 1,
+              videos_factory=None) -> None:  # fmt: skip
+    """The body of `train`: build, restore or init, log the run's facts, run the loop.
+    videos_factory: `videos.TrainingVideos` (the shell's), for `train.video_every`."""
     from sirl_jax.run.buffer_memory import check_buffer_fits
 
     spec, train = build(config)
@@ -323,11 +325,11 @@ def train_run(config: Config, run_dir: Path, *, resume_step: int | None = None,
                                 enabled=show_progress)  # fmt: skip
             best = ckpt.best() if saved is not None else None
             best = (best["value"], best["step"]) if best else (-math.inf, 0)
-            from sirl_jax.run.videos import TrainingVideos
-
-            videos = TrainingVideos(config, train, run_dir, log, bar.write, eval_key)
+            videos = None
+            if config.train.video_every and videos_factory is not None:
+                videos = videos_factory(config, train, run_dir, log, bar.write, eval_key)
             Run(config, train, ckpt, log, bar, guard, saved, best, shardings=shardings,
-                videos=videos if config.train.video_every else None).loop(state)
+                videos=videos).loop(state)
         finally:
             log.close()
     finally:
