@@ -126,9 +126,14 @@ def _base_config(argv: list[str]) -> tuple[Config, str, dict]:
             base = dataclasses.replace(base, train=dataclasses.replace(base.train, task=task))
     if not chosen.fits_task:
         return base, preset or "default", {}
-    from sirl_jax.run.runner import load_task
+    from sirl_jax.envs.loading import spec as task_spec
 
-    spec, _ = load_task(base.train.task, build_env=False)
+    try:  # the registered spec alone: nothing built (`runner.build` builds it, once)
+        spec = task_spec(base.train.task)
+    except KeyError as e:
+        raise UsageError(e.args[0]) from e
+    except ImportError as e:
+        raise UsageError(f"--task {base.train.task} needs an optional package: {e}") from e
     fitted, derived = fit_to_task(base, spec.episode_length)
     return fitted, preset, derived
 

@@ -103,6 +103,13 @@ def default_run_dir(task: str, seed: int, root: str = "runs") -> Path:
     return Path(root) / f"{safe}-s{seed}-{stamp}"
 
 
+def new_run_dir(run_dir: Path | None, task: str, seed: int) -> Path:
+    """`run_dir`, or the default one for the task and seed, checked to be new."""
+    run_dir = run_dir or default_run_dir(task, seed)
+    check_new_run_dir(run_dir)
+    return run_dir
+
+
 def check_new_run_dir(run_dir: Path) -> None:
     """RunDirError if `run_dir` exists and is not empty (a new run never reuses one)."""
     if run_dir.exists() and (not run_dir.is_dir() or any(run_dir.iterdir())):

@@ -228,14 +228,18 @@ class SweepRun:
             print(f"warning: {message}")
 
 
-def sweep_run(config: Config, sweep: Sweep, run_dir: Path, *, resuming: bool = False,
+def sweep_run(config: Config, sweep: Sweep, run_dir: Path | None, *, resuming: bool = False,
               keep: int = 3, show_progress: bool = True,
               tensorboard: bool = True, **stop) -> None:  # fmt: skip
-    """Trains (or resumes) every run of `sweep` over `config` in one program under `run_dir`;
-    `stop`: `SweepRun.loop`'s eval_at_start, until and budget_cpu_s."""
+    """Trains (or resumes) every run of `sweep` over `config` in one program under `run_dir`
+    (None: the default name for a new sweep); `stop`: `SweepRun.loop`'s eval_at_start, until
+    and budget_cpu_s. One pass through the shell: build the program (`runner.build`), then
+    the run directory, its files and logs (`runlog`), then the loop."""
     from sirl_jax.run.buffer_memory import check_buffer_fits
 
     spec, train = build(config)
+    if not resuming:
+        run_dir = runlog.new_run_dir(run_dir, config.train.task, config.train.seed)
     run = SweepRun(config, sweep, run_dir, keep, tensorboard, show_progress)
     axes = ", ".join(f"{f}={','.join(f'{v:g}' for v in vs)}" for f, vs in sweep.axes)
     print(runlog.describe_run(config, spec, train.buffer.describe(), run_dir,
@@ -292,16 +296,14 @@ def sweep_command(args) -> None:
                              "checkpoint")  # fmt: skip
     resuming = args.resume is not None
     config = args.config
-    if resuming:
-        run_dir = Path(args.resume)
-    else:
-        run_dir = Path(args.run_dir or runlog.default_run_dir(config.train.task, config.train.seed))
-        runlog.check_new_run_dir(run_dir)
+    given = args.resume if resuming else args.run_dir
+    run_dir = Path(given) if given else None  # a new one is named and checked by `sweep_run`
     try:
         if resuming:
             if args.sweep or args.seeds != 1:
                 raise UsageError("--seeds/--sweep cannot be combined with --resume (the saved "
                                  f"sweep, {run_dir / SWEEP_FILE}, is used)")  # fmt: skip
+            assert run_dir is not None
             sweep = load_sweep(run_dir)
         else:
             sweep = Sweep.parse(args.seeds, args.sweep)
