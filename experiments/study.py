@@ -132,7 +132,8 @@ def main(args: Args) -> None:
         baseline(study, args.task, args.baseline, args.episodes, root / f"{args.baseline}.json")
     if args.arm is not None:
         config = arm_config(study, args.arm, args.task, args.steps)
-        out = root / (args.arm if args.task is None else f"{args.task}/{args.arm}")
+        task = args.task or (study.task if study.per_task else None)
+        out = root / (args.arm if task is None else f"{task}/{args.arm}")
         run_arm(study, config, out, args.seed, args.until)
 
 

@@ -55,6 +55,8 @@ class Study:
     seeds: int = 3
     budget_cpu_s: float | None = None
     report: str = ""
+    per_task: bool = False
+    """Its arms run per task (`--task`): RESULTS/<study>/<task>/<arm>."""
 
 
 def fasttd3_cpu(task: str, steps: int, every: int, episodes: int, replay: str) -> Config:
@@ -163,9 +165,10 @@ for _scale in ("cpu", "paper"):
     for _name, (_arms, _doc) in _ablations.items():
         STUDIES[f"paper_{_name}_{_scale}"] = Study(
             f"{_doc}, {_scale} scale (--task TASK: any locomotion task's short name)",
-            paper_scale(_scale), _arms, task="stand",
-            report="experiments.studies.paper_report")  # fmt: skip
+            paper_scale(_scale), _arms, task="stand", per_task=True,
+            report=f"experiments.studies.paper_report --study paper_{_name}_{_scale} "
+                   "--tasks TASK ...")  # fmt: skip
 STUDIES["humanoid_study"] = dataclasses.replace(
-    STUDIES["paper_table_cpu"], arms=TDMPC2_ARMS,
+    STUDIES["paper_table_cpu"], arms=TDMPC2_ARMS, per_task=False,
     doc="TD-MPC2 against TDMPBC on h1-stand at CPU scale (paper_table_cpu's arms)",
     report="experiments.studies.paper_report --humanoid")
