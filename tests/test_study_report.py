@@ -184,3 +184,26 @@ def test_solved_report_leaves_mujoco_unimported_until_main_chose_gl():
                           capture_output=True, text=True, timeout=300)  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip() == "False"
+
+
+def test_the_paper_table_reads_each_task_and_arm_beside_the_papers_numbers(tmp_path):
+    """paper_report's table from hand-written arms (the committed layout: a seed column):
+    each arm's final planner return as mean and std over seeds, the paper's beside it."""
+    from experiments.studies.paper_report import table
+    from sirl_jax.run.reference import paper_2m
+
+    for arm, finals in (("TDMPBC", [300.0, 500.0]), ("TD-MPC2", [100.0, 100.0])):
+        (tmp_path / "paper_table_cpu" / "stand" / arm).mkdir(parents=True)
+        CsvLog(tmp_path / "paper_table_cpu" / "stand" / arm / "eval.csv").extend([
+            {"seed": s, "env_steps": step, "wall_s": 1.0, "cpu_s": 1.0, "planner_return": ret,
+             "policy_return": "", "r_max": ""}
+            for s, final in enumerate(finals) for step, ret in ((0, 5.0), (80_000, final))])
+    rows = table("paper_table_cpu", ("stand",), tmp_path)
+    by_arm = {r["arm"]: r for r in rows}
+    assert (by_arm["TDMPBC"]["mean"], by_arm["TDMPBC"]["std"]) == (400.0, 100.0)
+    assert (by_arm["TD-MPC2"]["mean"], by_arm["TD-MPC2"]["std"]) == (100.0, 0.0)
+    assert by_arm["TDMPBC"]["task"] == "h1-stand-v0" and by_arm["TDMPBC"]["steps"] == 80_000
+    paper = paper_2m()["stand"]
+    assert by_arm["TD-MPC2"]["paper"] == f"{paper['TD-MPC2'][0]} ± {paper['TD-MPC2'][1]}"
+    assert (tmp_path / "paper_table_cpu" / "paper_table_cpu.png").stat().st_size > 5_000
+    assert (tmp_path / "paper_table_cpu" / "paper_table_cpu.csv").is_file()
