@@ -303,6 +303,7 @@ def package_heights(m, backend: str) -> np.ndarray:
 
 # Failed at truck's earlier cap of 12: the stacked packages' box-box pairs ranked past it in
 # MJX's cull in every state (pair_cap) and the upper packages sank into the lower ones.
+@pytest.mark.slow  # 26 s cold
 @pytest.mark.timeout(600)
 def test_mjx_keeps_truck_packages_stacked():
     m = _env("truck", "hb").mj_model

@@ -86,6 +86,7 @@ def _smoke_study(budget: float | None = None) -> Study:
                  seeds=2, budget_cpu_s=budget)  # fmt: skip
 
 
+@pytest.mark.slow  # 66 s cold: three driver calls (the sweep's resume is in test_sweep_cli)
 @pytest.mark.timeout(900)
 def test_an_arm_evaluates_stops_resumes_and_keeps_its_clocks(tmp_path):
     study = _smoke_study()

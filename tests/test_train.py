@@ -105,6 +105,7 @@ def test_seed_phase_pretraining_and_planning(train, compiled):
     assert 0.0 <= float(last["sirl/clamped_fraction"]) <= 1.0
 
 
+@pytest.mark.slow  # 37 s cold; make test has the same check through the sweep (test_sweep.py)
 @pytest.mark.timeout(420)
 def test_vmapped_seeds_equal_single_runs(train, compiled):
     """S = 2 seeds in one vmapped program equal two single runs with the same keys.

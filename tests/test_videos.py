@@ -40,6 +40,7 @@ def _images(tb: Path, tag: str) -> list[tuple[int, bytes]]:
     return out
 
 
+@pytest.mark.slow  # 56 s cold: a training process rendering two videos
 @pytest.mark.timeout(900)
 def test_videos_go_to_the_run_dir_tensorboard_and_the_report(tmp_path):
     from sirl_jax.run.report import write_report

@@ -135,7 +135,7 @@ def _push(obs, t, env):
 @pytest.mark.timeout(400)
 @pytest.mark.parametrize(
     "name, policy, kwargs",
-    [("pendulum", _swing, {"episode_length": 20}),
+    [pytest.param("pendulum", _swing, {"episode_length": 20}, marks=pytest.mark.slow),  # 34 s
      pytest.param("dmc:CartpoleSwingup", _push, {}, marks=pytest.mark.slow)],  # 22 s idle
 )
 def test_warp_vec_env_matches_jax_through_auto_resets(name, policy, kwargs):
