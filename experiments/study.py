@@ -70,9 +70,9 @@ def run_arm(study: Study, config: Config, out: Path, seed: int | None = None,
             until: int | None = None) -> Path:  # fmt: skip
     """Trains (or resumes) the study's seeds of `config`, or seed `seed` alone, as one sweep
     under `out` (or `out/seed<I>`); returns the sweep directory."""
-    from sirl_jax.config import config_from_dict
     from sirl_jax.run.compile_cache import enable_compilation_cache
     from sirl_jax.run.config_rules import check_resume
+    from sirl_jax.run.runlog import load_config
     from sirl_jax.run.sweep_run import SWEEP_FILE, sweep_run
     from sirl_jax.sweep import Sweep
 
@@ -83,9 +83,8 @@ def run_arm(study: Study, config: Config, out: Path, seed: int | None = None,
     run_dir = out if seed is None else out / f"seed{seed}"
     resuming = (run_dir / SWEEP_FILE).is_file()
     if resuming:
-        saved = json.loads((run_dir / "config.json").read_text())
-        try:
-            check_resume(config_from_dict(Config, saved, str(run_dir)), config)
+        try:  # the sweep's base config, read as any saved config is (`runlog.load_config`)
+            check_resume(load_config(run_dir, sweep_ok=True), config)
         except ValueError as e:
             raise SystemExit(f"error: cannot resume {run_dir}: {e}") from None
     enable_compilation_cache()

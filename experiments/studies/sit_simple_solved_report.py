@@ -116,7 +116,8 @@ def video(arm_dir: Path, out: Path, frames: int = 6) -> str:
     seed = max(curves, key=lambda s: curves[s]["return"][-1])
     alone = (arm_dir / f"seed{seed}").is_dir()  # the seed ran as its own process
     run_dir = arm_dir / f"seed{seed}" if alone else arm_dir
-    swept = next((d for d in (run_dir / f"seed={seed}",) if d.is_dir()), None)  # a sweep's run
+    swept = run_dir / f"seed={seed}"  # a sweep's run (experiments.study), else the old layout
+    swept = swept if swept.is_dir() else None
     config = load_config(swept or run_dir)
     spec, train = build(config)
     keys = jax.random.split(jax.random.PRNGKey(0), 1 if alone else len(curves))

@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-_GL: dict[str, str | None] = {"problem": None, "backend": None}
+_GL_PROBLEM: list[str] = []  # why videos are off on this machine, once `prepare_gl` found it
 
 
 def wants_video(argv: list[str], flag_value) -> bool:
@@ -45,9 +45,9 @@ def prepare_gl() -> None:
     from sirl_jax.run.render import select_gl
 
     try:
-        _GL["backend"] = select_gl()
+        select_gl()
     except UsageError as e:
-        _GL["problem"] = str(e)
+        _GL_PROBLEM.append(str(e))
 
 
 class TrainingVideos:
@@ -57,7 +57,7 @@ class TrainingVideos:
         self.config, self.train, self.dir, self.log, self.write = config, train, run_dir, log, write
         self.eval_key = eval_key  # `runner.eval_key`: the evaluation's key at an env step
         self.every = config.train.video_every
-        self.off = _GL["problem"]
+        self.off = _GL_PROBLEM[0] if _GL_PROBLEM else None
         if self.every and self.off:
             write(f"warning: --train.video-every {self.every}: {self.off}; training goes on "
                   "without videos")  # fmt: skip
